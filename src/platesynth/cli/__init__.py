@@ -1,0 +1,35 @@
+"""The ``platesynth`` command: a thin layer of typer commands over the library's functions."""
+
+from __future__ import annotations
+
+import typer
+
+from platesynth import __version__
+from platesynth.cli import metrics as metrics_cli
+
+app = typer.Typer(
+    name="platesynth",
+    help="Synthetic multi-well plate assay images, realism and diversity metrics, and segmentation.",
+    no_args_is_help=True,
+    pretty_exceptions_enable=False,
+    add_completion=False,
+)
+app.add_typer(metrics_cli.app, name="metrics")
+
+
+def _version_callback(value: bool) -> None:
+    if value:
+        typer.echo(__version__)
+        raise typer.Exit()
+
+
+@app.callback()
+def _main(
+    version: bool = typer.Option(False, "--version", callback=_version_callback, is_eager=True, help="Print the version."),
+) -> None:
+    """platesynth command-line interface."""
+
+
+def main() -> None:
+    """Entry point of the ``platesynth`` console script."""
+    app()

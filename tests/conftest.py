@@ -1,0 +1,24 @@
+"""Shared fixtures. ``../shared`` (real photos, weights) is used by path and skipped clearly where absent."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import pytest
+
+SHARED = Path(os.environ.get("PLATESYNTH_SHARED", Path(__file__).resolve().parents[1].parent / "shared"))
+
+
+def shared_path(*parts: str) -> Path:
+    """Path under ``../shared``; skips the calling test with a clear message where it is absent."""
+    path = SHARED.joinpath(*parts)
+    if not path.exists():
+        pytest.skip(f"{path} not found: this test needs the developers' ../shared material (set PLATESYNTH_SHARED)")
+    return path
+
+
+@pytest.fixture
+def shared():
+    """Callable fixture: ``shared('weights', 'alexnet_features-7be5be79.pth')``."""
+    return shared_path
