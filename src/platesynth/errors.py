@@ -27,3 +27,11 @@ class ParameterError(PlatesynthError):
 
 class DatasetError(PlatesynthError):
     """A dataset directory is inconsistent (missing masks, another dataset in the way, ...)."""
+
+
+class MetricUndefinedError(PlatesynthError):
+    """A metric has no defined value for this input (e.g. naturalness of a constant image)."""
+
+
+class RenderError(PlatesynthError):
+    """A renderer failed (e.g. an error inside Blender)."""

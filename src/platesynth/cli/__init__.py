@@ -5,7 +5,7 @@ from __future__ import annotations
 import typer
 
 from platesynth import __version__
-from platesynth.cli import metrics as metrics_cli
+from platesynth.cli import metrics, render, scene, segment
 
 app = typer.Typer(
     name="platesynth",
@@ -14,7 +14,8 @@ app = typer.Typer(
     pretty_exceptions_enable=False,
     add_completion=False,
 )
-app.add_typer(metrics_cli.app, name="metrics")
+for _module in (metrics, scene, render, segment):
+    _module.register(app)
 
 
 def _version_callback(value: bool) -> None:

@@ -1,0 +1,72 @@
+"""What every renderer returns: the image and its exact instance masks."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class WellInfo:
+    """One well of the plate as drawn in the image.
+
+    ``id`` is its value in the well mask (1..n); ``row``/``col`` its 0-based position in the image grid
+    from the top-left; ``label`` the plate's embossed name (e.g. ``"A1"``; mirrored when shot from below).
+    """
+
+    id: int
+    row: int
+    col: int
+    label: str
+
+
+@dataclass
+class RenderResult:
+    """A rendered scene.
+
+    Attributes
+    ----------
+    image : (H, W, 3) uint8 RGB image.
+    wells : (H, W) uint8 well instance mask: 0 background, 1..n wells.
+    plaques : (H, W) uint16 plaque instance mask: 0 none, 1..m plaques (ids unique, hidden plaques absent).
+    well_info : one :class:`WellInfo` per well id present in the plate.
+    """
+
+    image: np.ndarray
+    wells: np.ndarray
+    plaques: np.ndarray
+    well_info: list[WellInfo] = field(default_factory=list)
+
+    def plaque_counts(self) -> dict[int, int]:
+        """Visible plaques per well id (a plaque belongs to the well holding most of its pixels)."""
+        return plaque_counts(self.wells, self.plaques, [w.id for w in self.well_info])
+
+
+def plaque_counts(wells: np.ndarray, plaques: np.ndarray, well_ids: list[int] | None = None) -> dict[int, int]:
+    """Count plaques per well from the two instance masks.
+
+    Parameters
+    ----------
+    wells, plaques : (H, W) integer instance masks of equal shape.
+    well_ids : wells to report (with 0 where they hold no plaque); default: the ids in ``wells``.
+
+    Returns
+    -------
+    dict mapping well id to the number of plaque ids whose pixels lie mostly in that well.
+    """
+    if well_ids is None:
+        well_ids = [int(i) for i in np.unique(wells) if i != 0]
+    counts = {int(i): 0 for i in well_ids}
+    inside = plaques > 0
+    if not inside.any():
+        return counts
+    pairs = np.stack([plaques[inside].astype(np.int64), wells[inside].astype(np.int64)])
+    (plaque_ids, well_of_pixel), n = np.unique(pairs, axis=1, return_counts=True)
+    order = np.lexsort((-n, plaque_ids))  # per plaque, the well with the most pixels first
+    plaque_ids, well_of_pixel = plaque_ids[order], well_of_pixel[order]
+    first = np.r_[True, plaque_ids[1:] != plaque_ids[:-1]]
+    for well in well_of_pixel[first]:
+        if int(well) in counts:
+            counts[int(well)] += 1
+    return counts
