@@ -35,3 +35,7 @@ class MetricUndefinedError(PlatesynthError):
 
 class RenderError(PlatesynthError):
     """A renderer failed (e.g. an error inside Blender)."""
+
+
+class ExecutorError(PlatesynthError):
+    """Batch work could not run where asked (e.g. a Dask scheduler is unreachable, a worker process died)."""

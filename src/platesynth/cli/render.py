@@ -1,9 +1,224 @@
-"""CLI commands for the render part (registered by :func:`register`)."""
+"""``platesynth render``, ``preview`` and ``demo``: datasets on disk, contact sheets, the newcomer's first run."""
 
 from __future__ import annotations
 
+import re
+from pathlib import Path
+from typing import Annotated, Any
+
 import typer
+import yaml
+from rich.progress import Progress, ProgressColumn, Task
+from rich.text import Text
+
+from platesynth.cli._common import console, print_json, print_table, progress_bar, user_errors
+from platesynth.data.batch import BatchSummary, build_manifest, render_dataset, render_item
+from platesynth.data.executor import EXECUTORS, make_executor
+from platesynth.data.layout import Manifest, list_items, load_item
+from platesynth.data.preview import contact_sheet, draw_outlines
+from platesynth.data.writer import check_directory
+from platesynth.errors import ParameterError
+from platesynth.io import write_png
+
+_SIZE = re.compile(r"^\s*(\d+)\s*[xX]\s*(\d+)\s*$")
+
+Out = Annotated[Path, typer.Option("--out", "-o", help="Output directory of the dataset.")]
+Seed = Annotated[int, typer.Option("--seed", help="Dataset seed: image i gets a seed derived from (seed, i).")]
+Preset = Annotated[str | None, typer.Option("--preset", help="Scene preset (see `platesynth scene presets`).")]
+Plate = Annotated[int | None, typer.Option("--plate", help="Plate format: 6, 12, 24 or 96 wells (overrides the preset).")]
+ConfigFile = Annotated[Path | None, typer.Option("--config", help="YAML scene configuration (applied over the preset).")]
+Overrides = Annotated[
+    list[str] | None, typer.Option("--set", help="Override one parameter, e.g. --set plaques.radius_mm=[0.5,1.0]; repeatable.")
+]
+Backend = Annotated[str, typer.Option("--backend", help="Renderer: raster (fast, numpy) or blender.")]
+
+
+def parse_size(text: str) -> tuple[int, int]:
+    """``"1024x768"`` -> ``(1024, 768)`` (width, height).
+
+    Raises
+    ------
+    ParameterError
+        If the text is not ``WIDTHxHEIGHT`` with positive integers.
+    """
+    match = _SIZE.match(text)
+    if not match or min(int(match[1]), int(match[2])) <= 0:
+        raise ParameterError(f"size {text!r}: expected WIDTHxHEIGHT in pixels, e.g. 1024x768")
+    return int(match[1]), int(match[2])
+
+
+def parse_overrides(items: list[str] | None, plate: int | None = None) -> dict[str, Any]:
+    """``["plaques.radius_mm=[0.5, 1]"]`` -> ``{"plaques.radius_mm": [0.5, 1]}`` (values read as YAML).
+
+    ``plate``, if given, becomes ``plate.format``.
+    """
+    overrides: dict[str, Any] = {}
+    for item in items or []:
+        name, sep, value = item.partition("=")
+        if not sep or not name.strip():
+            raise ParameterError(f"--set {item!r}: expected NAME=VALUE, e.g. plate.format=24")
+        try:
+            overrides[name.strip()] = yaml.safe_load(value)
+        except yaml.YAMLError:
+            raise ParameterError(f"--set {item!r}: the value is not valid YAML") from None
+    if plate is not None:
+        overrides["plate.format"] = plate
+    return overrides
+
+
+class _RateColumn(ProgressColumn):
+    """Images per second, averaged over the last seconds."""
+
+    def render(self, task: Task) -> Text:
+        speed = task.finished_speed or task.speed
+        return Text(f"{speed:.2f} img/s" if speed else "- img/s", style="progress.data.speed")
+
+
+def _render_with_progress(directory: Path, manifest: Manifest, executor: Any, overwrite: bool) -> BatchSummary:
+    bar = progress_bar(transient=False)
+    bar.columns = (*bar.columns, _RateColumn())
+    task_id: list[Any] = []
+
+    def progress(done: int, total: int) -> None:
+        if not task_id:
+            task_id.append(bar.add_task("rendering", total=total, completed=done))
+        else:
+            bar.update(task_id[0], completed=done)
+
+    with bar:
+        return render_dataset(directory, manifest, executor=executor, overwrite=overwrite, progress=progress)
+
+
+def _report(summary: BatchSummary, as_json: bool) -> None:
+    if as_json:
+        print_json(summary.to_dict())
+    console.print(
+        f"{summary.rendered} rendered, {summary.skipped} already there, {len(summary.failed)} failed "
+        f"in {summary.seconds:.1f} s -> {summary.directory}",
+        highlight=False,
+    )
+    for name, error in list(summary.failed.items())[:10]:
+        console.print(f"[bold red]failed:[/] {name}: {error}", highlight=False, soft_wrap=True)
+    if len(summary.failed) > 10:
+        console.print(f"... and {len(summary.failed) - 10} more (see manifest.json)", highlight=False)
+
+
+@user_errors
+def render(
+    out: Out,
+    count: Annotated[int, typer.Option("--count", "-n", help="Number of images.")],
+    seed: Seed = 0,
+    preset: Preset = None,
+    plate: Plate = None,
+    size: Annotated[str, typer.Option("--size", help="Image size WIDTHxHEIGHT.")] = "1024x768",
+    config: ConfigFile = None,
+    overrides: Overrides = None,
+    backend: Backend = "raster",
+    workers: Annotated[int, typer.Option("--workers", "-j", help="Local worker processes (or Dask LocalCluster workers).")] = 1,
+    executor: Annotated[str, typer.Option("--executor", help=f"Where to render: {' or '.join(EXECUTORS)}.")] = "local",
+    scheduler: Annotated[
+        str | None, typer.Option("--scheduler", help="Address of a running Dask scheduler (implies --executor dask).")
+    ] = None,
+    connect_timeout: Annotated[float, typer.Option("--connect-timeout", help="Seconds to wait for the Dask scheduler.")] = 10.0,
+    coco: Annotated[bool, typer.Option("--coco", help="Also write annotations.coco.json (wells and plaques).")] = False,
+    overwrite: Annotated[bool, typer.Option("--overwrite", help="Replace a different dataset found in --out.")] = False,
+    as_json: Annotated[bool, typer.Option("--json", help="Print a JSON summary on stdout.")] = False,
+) -> None:
+    """Render an annotated dataset: images, instance masks, params, counts.csv (resumes an interrupted run)."""
+    manifest = build_manifest(
+        preset=preset,
+        config_file=config,
+        overrides=parse_overrides(overrides, plate),
+        seed=seed,
+        count=count,
+        size=parse_size(size),
+        backend=backend,
+        coco=coco,
+    )
+    check_directory(out, manifest, overwrite)
+    kind = "dask" if scheduler is not None else executor
+    with make_executor(kind, workers=workers, scheduler=scheduler, timeout=connect_timeout) as pool:
+        console.print(f"rendering {manifest.count} images into {out} on {pool.describe()}", highlight=False)
+        summary = _render_with_progress(out, manifest, pool, overwrite)
+    _report(summary, as_json)
+    if summary.failed:
+        raise typer.Exit(code=1)
+
+
+@user_errors
+def preview(
+    out: Annotated[Path, typer.Option("--out", "-o", help="Contact sheet to write (.png).")],
+    count: Annotated[int, typer.Option("--count", "-n", help="Number of scenes.")] = 12,
+    seed: Seed = 0,
+    preset: Preset = None,
+    plate: Plate = None,
+    size: Annotated[str, typer.Option("--size", help="Size of each image WIDTHxHEIGHT.")] = "320x240",
+    config: ConfigFile = None,
+    overrides: Overrides = None,
+    backend: Backend = "raster",
+    columns: Annotated[int, typer.Option("--columns", help="Images per row.")] = 4,
+    outlines: Annotated[bool, typer.Option("--outlines/--no-outlines", help="Draw well and plaque outlines.")] = True,
+) -> None:
+    """Render a few scenes small and tile them into one contact sheet, to look at a configuration."""
+    if out.suffix.lower() != ".png":
+        raise ParameterError(f"{out}: the contact sheet is a PNG file; give a name ending in .png")
+    if out.is_dir():
+        raise ParameterError(f"{out}: is a directory; give a file name ending in .png")
+    if columns < 1:
+        raise ParameterError(f"columns must be >= 1, got {columns}")
+    manifest = build_manifest(
+        preset=preset,
+        config_file=config,
+        overrides=parse_overrides(overrides, plate),
+        seed=seed,
+        count=count,
+        size=parse_size(size),
+        backend=backend,
+    )
+    tiles = []
+    with progress_bar() as bar:
+        for index in bar.track(range(count), description="rendering"):
+            result, _ = render_item(manifest, index)
+            tiles.append(draw_outlines(result.image, result.wells, result.plaques) if outlines else result.image)
+    write_png(out, contact_sheet(tiles, columns=columns, tile_width=manifest.size[0]))
+    console.print(f"wrote {out} ({count} scenes, seed {seed})", highlight=False)
+
+
+@user_errors
+def demo(
+    out: Out = Path("demo-output"),
+    count: Annotated[int, typer.Option("--count", "-n", help="Number of images.")] = 12,
+    size: Annotated[str, typer.Option("--size", help="Image size WIDTHxHEIGHT.")] = "512x384",
+    preset: Preset = "high",
+    seed: Seed = 0,
+    workers: Annotated[int, typer.Option("--workers", "-j", help="Local worker processes.")] = 1,
+) -> None:
+    """Render a small 12-well dataset with counts and COCO, a contact sheet, and print its dataset metrics."""
+    from platesynth.metrics.dataset import dataset_metrics
+
+    manifest = build_manifest(
+        preset=preset, overrides={"plate.format": 12}, seed=seed, count=count, size=parse_size(size), coco=True
+    )
+    check_directory(out, manifest)
+    with make_executor("local", workers=workers) as pool:
+        summary = _render_with_progress(out, manifest, pool, overwrite=False)
+    _report(summary, as_json=False)
+    items = list_items(out)
+    tiles = [draw_outlines(*load_item(item)) for item in items[:12]]
+    sheet = out / "preview.png"
+    write_png(sheet, contact_sheet(tiles, columns=4, tile_width=256))
+    print_table(dataset_metrics(out / "images"), title=f"dataset metrics of {out / 'images'}")
+    console.print(
+        f"images, masks and params in {out}/; per-well counts in {out / 'counts.csv'}; "
+        f"COCO in {out / 'annotations.coco.json'}; contact sheet {sheet}",
+        highlight=False,
+    )
+    if summary.failed:
+        raise typer.Exit(code=1)
 
 
 def register(app: typer.Typer) -> None:
-    """Add this module's commands to the main platesynth app."""
+    """Add ``render``, ``preview`` and ``demo`` to the main platesynth app."""
+    app.command("render")(render)
+    app.command("preview")(preview)
+    app.command("demo")(demo)

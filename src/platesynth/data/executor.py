@@ -1,0 +1,237 @@
+"""Where batch work runs: in this process, in local worker processes, or on a Dask cluster.
+
+An executor knows nothing of rendering or files: it runs a picklable ``task(item) -> record`` over items and
+yields the records as they finish (in any order). Workers may run a ``setup()`` once when they start (e.g. to
+start a long-lived renderer process); the callable must be picklable (a module-level function).
+
+Use them as context managers::
+
+    with ProcessExecutor(workers=4) as executor:
+        for record in executor.map_unordered(task, range(100)):
+            ...
+"""
+
+from __future__ import annotations
+
+import multiprocessing
+import os
+from collections.abc import Callable, Iterable, Iterator
+from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
+from concurrent.futures.process import BrokenProcessPool
+from typing import Any, TypeVar
+
+from platesynth.errors import ExecutorError, ParameterError
+
+T = TypeVar("T")
+R = TypeVar("R")
+
+EXECUTORS = ("local", "dask")
+
+
+class SerialExecutor:
+    """Runs every task in this process, one after the other."""
+
+    def __init__(self, setup: Callable[[], None] | None = None) -> None:
+        self._setup = setup
+
+    def __enter__(self) -> SerialExecutor:
+        if self._setup is not None:
+            self._setup()
+        return self
+
+    def __exit__(self, *exc_info: object) -> None:
+        return None
+
+    def map_unordered(self, task: Callable[[T], R], items: Iterable[T]) -> Iterator[R]:
+        """Yield ``task(item)`` for every item, in order."""
+        for item in items:
+            yield task(item)
+
+    def describe(self) -> str:
+        """A short description for people, e.g. ``"1 process"``."""
+        return "1 process"
+
+
+class ProcessExecutor:
+    """Runs tasks in ``workers`` local processes started with ``spawn`` (safe with threads, same on every OS).
+
+    At most ``2 * workers`` tasks are queued at a time, so an interrupt stops the batch quickly.
+    """
+
+    def __init__(self, workers: int, setup: Callable[[], None] | None = None) -> None:
+        if workers < 1:
+            raise ParameterError(f"workers must be >= 1, got {workers}")
+        self.workers = workers
+        self._setup = setup
+        self._pool: ProcessPoolExecutor | None = None
+
+    def __enter__(self) -> ProcessExecutor:
+        self._pool = ProcessPoolExecutor(
+            max_workers=self.workers, mp_context=multiprocessing.get_context("spawn"), initializer=self._setup
+        )
+        return self
+
+    def __exit__(self, *exc_info: object) -> None:
+        if self._pool is not None:
+            self._pool.shutdown(wait=True, cancel_futures=True)
+            self._pool = None
+
+    def map_unordered(self, task: Callable[[T], R], items: Iterable[T]) -> Iterator[R]:
+        """Yield ``task(item)`` for every item as the workers finish them."""
+        if self._pool is None:
+            raise RuntimeError("use ProcessExecutor as a context manager")
+        pending: set[Future[R]] = set()
+        queue = iter(items)
+        try:
+            while True:
+                for item in queue:
+                    pending.add(self._pool.submit(task, item))
+                    if len(pending) >= 2 * self.workers:
+                        break
+                if not pending:
+                    return
+                done, pending = wait(pending, return_when=FIRST_COMPLETED)
+                for future in done:
+                    yield future.result()
+        except BrokenProcessPool as exc:
+            raise ExecutorError(f"a worker process died unexpectedly ({exc}); run the command again to resume") from None
+        finally:
+            for future in pending:
+                future.cancel()
+
+    def describe(self) -> str:
+        """A short description for people, e.g. ``"4 processes"``."""
+        return f"{self.workers} processes"
+
+
+class DaskExecutor:
+    """Runs tasks on a Dask cluster: an existing scheduler (``scheduler`` address) or a new ``LocalCluster``.
+
+    Parameters
+    ----------
+    scheduler : str, optional
+        Address of a running scheduler (``tcp://host:8786``). Default: start a ``LocalCluster`` of ``workers``
+        single-threaded processes for the lifetime of the executor.
+    workers : int
+        Number of workers of the ``LocalCluster`` (ignored with ``scheduler``).
+    setup : callable, optional
+        Run once on every worker before its first task.
+    timeout : float
+        Seconds to wait for the scheduler before giving up.
+
+    Notes
+    -----
+    The workers write the files themselves, so with a remote cluster the output directory must be on a
+    file system that every worker sees under the same path (e.g. the shared file system of an HPC cluster).
+    """
+
+    def __init__(
+        self,
+        scheduler: str | None = None,
+        workers: int = 1,
+        setup: Callable[[], None] | None = None,
+        timeout: float = 10.0,
+    ) -> None:
+        if workers < 1:
+            raise ParameterError(f"workers must be >= 1, got {workers}")
+        if timeout <= 0:
+            raise ParameterError(f"timeout must be > 0 seconds, got {timeout}")
+        self.scheduler = scheduler
+        self.workers = workers
+        self.timeout = timeout
+        self._setup = setup
+        self._cluster: Any = None
+        self._client: Any = None
+
+    def __enter__(self) -> DaskExecutor:
+        try:
+            from distributed import Client, LocalCluster
+
+            from platesynth.data._dask_plugin import SetupPlugin
+        except ImportError:
+            raise ExecutorError("the dask executor needs dask.distributed: pip install 'platesynth[dask]'") from None
+        try:
+            if self.scheduler is None:
+                self._cluster = LocalCluster(
+                    n_workers=self.workers, threads_per_worker=1, processes=True, dashboard_address=None
+                )
+                self._client = Client(self._cluster, timeout=f"{self.timeout}s")
+            else:
+                self._client = Client(self.scheduler, timeout=f"{self.timeout}s")
+        except (OSError, TimeoutError, ValueError) as exc:
+            self.__exit__()
+            where = self.scheduler or "a local Dask cluster"
+            raise ExecutorError(f"cannot connect to Dask scheduler {where}: {exc}") from None
+        if self._setup is not None:
+            self._client.register_plugin(SetupPlugin(self._setup), name="platesynth-setup")
+        return self
+
+    def __exit__(self, *exc_info: object) -> None:
+        if self._client is not None:
+            self._client.close()
+            self._client = None
+        if self._cluster is not None:
+            self._cluster.close()
+            self._cluster = None
+
+    def map_unordered(self, task: Callable[[T], R], items: Iterable[T]) -> Iterator[R]:
+        """Yield ``task(item)`` for every item as the cluster finishes them."""
+        if self._client is None:
+            raise RuntimeError("use DaskExecutor as a context manager")
+        from distributed import as_completed
+
+        futures = self._client.map(task, list(items), pure=False)
+        try:
+            for future in as_completed(futures):
+                yield future.result()
+        finally:
+            self._client.cancel([f for f in futures if not f.done()])
+
+    def describe(self) -> str:
+        """A short description for people."""
+        if self.scheduler is not None:
+            return f"Dask cluster at {self.scheduler}"
+        return f"local Dask cluster of {self.workers} workers"
+
+
+Executor = SerialExecutor | ProcessExecutor | DaskExecutor
+
+
+def make_executor(
+    kind: str = "local",
+    workers: int = 1,
+    scheduler: str | None = None,
+    setup: Callable[[], None] | None = None,
+    timeout: float = 10.0,
+) -> Executor:
+    """The executor a command line asks for.
+
+    Parameters
+    ----------
+    kind : {"local", "dask"}
+        ``local``: this process when ``workers == 1``, else ``workers`` local processes. ``dask``: the
+        cluster at ``scheduler``, or a new LocalCluster of ``workers`` processes.
+    workers, scheduler, setup, timeout
+        See :class:`ProcessExecutor` and :class:`DaskExecutor`.
+
+    Raises
+    ------
+    ParameterError
+        For an unknown kind, ``workers < 1``, or a scheduler given to the local executor.
+    """
+    if kind not in EXECUTORS:
+        raise ParameterError(f"unknown executor {kind!r} (choose from {', '.join(EXECUTORS)})")
+    if workers < 1:
+        raise ParameterError(f"workers must be >= 1, got {workers}")
+    if kind == "dask":
+        return DaskExecutor(scheduler=scheduler, workers=workers, setup=setup, timeout=timeout)
+    if scheduler is not None:
+        raise ParameterError("a scheduler address needs the dask executor (--executor dask)")
+    if workers == 1:
+        return SerialExecutor(setup=setup)
+    return ProcessExecutor(workers=workers, setup=setup)
+
+
+def default_workers() -> int:
+    """The number of CPUs this process may use."""
+    return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)

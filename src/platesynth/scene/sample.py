@@ -1,0 +1,407 @@
+"""Drawing a concrete :class:`Scene` from a :class:`SceneConfig` with one seeded generator."""
+
+from __future__ import annotations
+
+import colorsys
+import math
+
+import numpy as np
+
+from platesynth.errors import ParameterError
+from platesynth.scene.config import SceneConfig
+from platesynth.scene.params import (
+    Artifacts,
+    Background,
+    Blot,
+    Camera,
+    Debris,
+    Effect,
+    Lighting,
+    MarkerStroke,
+    Plaque,
+    PlateGeometry,
+    PlateLook,
+    PostProcessing,
+    Scene,
+    Scratch,
+    Stain,
+    Well,
+    WellStain,
+)
+
+# rows, cols, pitch, bottom radius, wall thickness, well depth (mm); SBS footprint, wells centred on the plate
+_FORMATS: dict[int, tuple[int, int, float, float, float, float]] = {
+    6: (2, 3, 39.12, 17.4, 1.5, 17.4),
+    12: (3, 4, 26.01, 11.05, 1.3, 17.5),
+    24: (4, 6, 19.30, 7.8, 1.1, 17.4),
+    96: (8, 12, 9.00, 3.2, 0.8, 10.7),
+}
+N_HARMONICS = 5
+"""Plaque outlines use the Fourier harmonics k = 2 .. N_HARMONICS + 1."""
+
+
+def plate_geometry(fmt: int) -> PlateGeometry:
+    """SBS geometry of a plate with ``fmt`` wells (6, 12, 24 or 96)."""
+    if fmt not in _FORMATS:
+        raise ParameterError(f"plate.format: {fmt} is not a plate format: valid formats are 6, 12, 24, 96")
+    rows, cols, pitch, radius, wall, depth = _FORMATS[fmt]
+    length, width = 127.76, 85.48
+    return PlateGeometry(
+        format=fmt,
+        rows=rows,
+        cols=cols,
+        length_mm=length,
+        width_mm=width,
+        a1_x_mm=round((length - (cols - 1) * pitch) / 2, 3),
+        a1_y_mm=round((width - (rows - 1) * pitch) / 2, 3),
+        pitch_mm=pitch,
+        well_radius_mm=radius,
+        wall_mm=wall,
+        well_depth_mm=depth,
+    )
+
+
+def color_temperature_rgb(kelvin: float) -> tuple[float, float, float]:
+    """Approximate RGB gains of a black body at ``kelvin``, normalised to green = 1 (6500 K ~ neutral)."""
+    t = kelvin / 100.0
+    red = 255.0 if t <= 66 else 329.698727446 * (t - 60) ** -0.1332047592
+    green = 99.4708025861 * math.log(t) - 161.1195681661 if t <= 66 else 288.1221695283 * (t - 60) ** -0.0755148492
+    blue = 255.0 if t >= 66 else (0.0 if t <= 19 else 138.5177312231 * math.log(t - 10) - 305.0447927307)
+    rgb = np.clip([red, green, blue], 1.0, 255.0)
+    return tuple(float(v) for v in rgb / rgb[1])  # type: ignore[return-value]
+
+
+def stain_rgb(stain: Stain) -> tuple[float, float, float]:
+    """RGB (0..1) of the monolayer at nominal density."""
+    return colorsys.hsv_to_rgb((stain.hue_deg % 360.0) / 360.0, stain.saturation, stain.value)
+
+
+def _smooth_stroke(rng: np.random.Generator, start: np.ndarray, size: float, n_points: int = 9) -> np.ndarray:
+    """A hand-written-looking curve: a random walk with momentum, ``size`` mm across."""
+    heading = rng.uniform(0, 2 * np.pi)
+    turn = rng.normal(0, 0.6)
+    points = [start]
+    step = size / (n_points - 1)
+    for _ in range(n_points - 1):
+        turn = 0.7 * turn + rng.normal(0, 0.5)
+        heading += turn
+        points.append(points[-1] + step * np.array([math.cos(heading), math.sin(heading)]))
+    return np.asarray(points)
+
+
+def _tuple2(a: np.ndarray) -> tuple[float, float]:
+    return (round(float(a[0]), 4), round(float(a[1]), 4))
+
+
+def sample_scene(config: SceneConfig, seed: int) -> Scene:
+    """Draw a concrete scene from ``config``; every random draw comes from ``numpy.random.default_rng(seed)``.
+
+    Parameters
+    ----------
+    config : the ranges and distributions (see :func:`platesynth.scene.load_config`).
+    seed : non-negative integer; the same config and seed give the same scene.
+
+    Returns
+    -------
+    Scene
+    """
+    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
+        raise ParameterError(f"seed must be a non-negative integer, got {seed!r}")
+    rng = np.random.default_rng(int(seed))
+    c = config
+
+    plate = plate_geometry(c.plate.draw("format", rng))
+    plate_look = PlateLook(
+        transmittance=c.plate.draw("transmittance", rng),
+        tint_rgb=tuple(np.round([1.0 - 1.5 * (tint := c.plate.draw("tint", rng)), 1.0 - 0.6 * tint, 1.0], 4)),
+        rim_darkness=c.plate.draw("rim_darkness", rng),
+        label_strength=c.plate.draw("label_strength", rng),
+    )
+
+    tilt = c.camera.draw("tilt_deg", rng)
+    tilt_direction = rng.uniform(0, 2 * np.pi)
+    camera = Camera(
+        from_below=c.camera.draw("from_below", rng),
+        plate_fill=c.camera.draw("plate_fill", rng),
+        rotation_deg=c.camera.draw("rotation_deg", rng),
+        tilt_x_deg=tilt * math.cos(tilt_direction),
+        tilt_y_deg=tilt * math.sin(tilt_direction),
+        offset=(c.camera.draw("offset", rng), c.camera.draw("offset", rng)),
+        distance_mm=c.camera.draw("distance_mm", rng),
+        defocus_px=c.camera.draw("defocus_px", rng),
+    )
+
+    kind = c.background.draw("kind", rng)
+    gray = c.background.draw("desk_gray", rng)
+    warmth = rng.uniform(-0.03, 0.06)
+    brightness = c.background.draw("brightness", rng)
+    texture = c.background.draw("texture", rng)
+    ruler = c.background.draw("ruler", rng)
+    margins = [c.background.draw("panel_margin_mm", rng) for _ in range(2)]
+    background = Background(
+        kind=kind,
+        brightness=brightness,
+        color_rgb=tuple(np.clip(np.round([gray * (1 + warmth), gray, gray * (1 - warmth)], 4), 0, 1)),
+        texture=texture,
+        ruler=ruler,
+        panel_mm=_light_panel(rng, plate, margins),
+        frame_mm=rng.uniform(8.0, 20.0),
+    )
+
+    stain = Stain(
+        hue_deg=c.stain.draw("hue_deg", rng),
+        saturation=c.stain.draw("saturation", rng),
+        value=c.stain.draw("value", rng),
+        unevenness=c.stain.draw("unevenness", rng),
+        unevenness_scale_mm=c.stain.draw("unevenness_scale_mm", rng),
+        centre_elongation=c.stain.draw("centre_elongation", rng),
+        rim_clearing_mm=c.stain.draw("rim_clearing_mm", rng),
+        translucency=c.stain.draw("translucency", rng),
+    )
+    density = c.stain.draw("density", rng)
+    jitter = c.stain.draw("well_density_jitter", rng)
+    centre_gradient = c.stain.draw("centre_gradient", rng)
+    drying = c.stain.draw("drying_detail", rng)
+
+    negative = c.plaques.draw("negative_plate", rng)
+    top_count = c.plaques.draw("top_count", rng)
+    factor = c.plaques.draw("dilution_factor", rng)
+    reverse = c.plaques.draw("reverse_series", rng)
+    lysis_count = c.plaques.draw("lysis_count", rng)
+    median_radius = c.plaques.draw("radius_mm", rng)
+    radius_spread = c.plaques.draw("radius_spread", rng)
+    irregularity = c.plaques.draw("irregularity", rng)
+    softness = c.plaques.draw("softness", rng)
+    clearness = c.plaques.draw("clearness", rng)
+    edge_bias = c.plaques.draw("edge_bias", rng)
+    max_overlap = c.plaques.draw("max_overlap", rng)
+    emptied_p = c.wells.emptied
+
+    wells: list[Well] = []
+    plaques: list[Plaque] = []
+    scratches: list[Scratch] = []
+    debris: list[Debris] = []
+    scratch_length = c.artifacts.draw("scratch_length_mm", rng)
+    scratch_width = c.artifacts.draw("scratch_width_mm", rng)
+    extra_scratches = c.artifacts.draw("extra_scratches", rng)
+    debris_rate = c.artifacts.draw("debris", rng)
+    radius = plate.well_radius_mm
+    harmonic_scale = irregularity / np.arange(2, N_HARMONICS + 2) ** 0.7
+
+    for plate_row in range(plate.rows):
+        for plate_col in range(plate.cols):
+            col = plate.cols - 1 - plate_col if camera.from_below else plate_col
+            well_id = plate_row * plate.cols + col + 1
+            center = np.array([plate.a1_x_mm + plate_col * plate.pitch_mm, plate.a1_y_mm + plate_row * plate.pitch_mm])
+            step = plate.cols - 1 - plate_col if reverse else plate_col
+            expected = 0.0 if negative else top_count / factor**step
+            emptied = bool(rng.random() < emptied_p)
+            lysed = (not emptied) and expected > lysis_count
+            count = 0 if emptied or lysed else int(rng.poisson(expected * rng.lognormal(0.0, 0.15)))
+            wells.append(
+                Well(
+                    id=well_id,
+                    row=plate_row,
+                    col=col,
+                    label=f"{chr(ord('A') + plate_row)}{plate_col + 1}",
+                    center_mm=_tuple2(center),
+                    emptied=emptied,
+                    lysed=lysed,
+                    expected_plaques=round(expected, 4),
+                    stain=WellStain(
+                        density=density * float(np.exp(rng.normal(0.0, jitter))),
+                        centre_gradient=centre_gradient * rng.uniform(0.5, 1.0),
+                        centre_angle_deg=rng.uniform(0, 180),
+                        centre_offset_mm=_tuple2(rng.normal(0, 0.15 * radius, 2)),
+                        drying_detail=drying * rng.uniform(0.7, 1.0),
+                    ),
+                )
+            )
+            if emptied:
+                continue
+            plaques.extend(
+                _sample_plaques(
+                    rng, count, well_id, center, radius, len(plaques), median_radius, radius_spread,
+                    harmonic_scale, softness, clearness, edge_bias, max_overlap,
+                )
+            )
+            if c.artifacts.draw("pipette_scratch", rng):
+                scratches.append(_pipette_scratch(rng, well_id, center, radius, scratch_length, scratch_width))
+            for _ in range(int(rng.poisson(extra_scratches))):
+                start = center + _in_disc(rng, radius * 0.95)
+                stroke = _smooth_stroke(rng, start, rng.uniform(0.3, 1.0) * scratch_length, n_points=4)
+                scratches.append(Scratch(well=well_id, points_mm=tuple(map(_tuple2, stroke)),
+                                         width_mm=scratch_width * rng.uniform(0.5, 1.0)))
+            for _ in range(int(rng.poisson(debris_rate))):
+                length = rng.uniform(0.08, 0.5)
+                debris.append(
+                    Debris(
+                        well=well_id,
+                        center_mm=_tuple2(center + _in_disc(rng, radius * 0.97)),
+                        length_mm=length,
+                        width_mm=length * rng.uniform(0.2, 0.7),
+                        angle_deg=rng.uniform(0, 180),
+                        darkness=rng.uniform(0.5, 2.5),
+                    )
+                )
+    wells.sort(key=lambda w: w.id)
+
+    marker: list[MarkerStroke] = []
+    if c.artifacts.draw("marker", rng):
+        marker = _marker_writing(rng, plate, camera.from_below)
+    blots = [
+        Blot(
+            center_mm=_tuple2(rng.uniform([0, 0], [plate.length_mm, plate.width_mm])),
+            radius_mm=rng.uniform(0.5, 4.0),
+            color_rgb=tuple(np.round(rng.uniform([0.3, 0.2, 0.3], [0.7, 0.6, 0.8]), 4)),
+            opacity=rng.uniform(0.05, 0.3),
+        )
+        for _ in range(int(rng.poisson(c.artifacts.draw("blots", rng))))
+    ]
+
+    lighting = Lighting(
+        exposure_ev=c.lighting.draw("exposure_ev", rng),
+        color_temperature_k=c.lighting.draw("color_temperature_k", rng),
+        vignetting=c.lighting.draw("vignetting", rng),
+        glare_strength=c.lighting.draw("glare", rng),
+        glare_center=_tuple2(rng.uniform(0, 1, 2)),
+        glare_radius=rng.uniform(0.1, 0.4),
+    )
+    post = _sample_post(c, rng)
+    texture_seed = int(rng.integers(0, 2**31 - 1))
+    return Scene(
+        seed=texture_seed,
+        plate=plate,
+        plate_look=plate_look,
+        stain=stain,
+        wells=tuple(wells),
+        plaques=tuple(plaques),
+        artifacts=Artifacts(scratches=tuple(scratches), marker=tuple(marker), blots=tuple(blots), debris=tuple(debris)),
+        background=background,
+        lighting=lighting,
+        camera=camera,
+        post=post,
+    )
+
+
+def _light_panel(rng: np.random.Generator, plate: PlateGeometry, margins: list[float]) -> tuple[float, ...]:
+    """An A4-sized light panel with the plate near one of its corners (``margins`` from two edges)."""
+    portrait = rng.random() < 0.7
+    panel_w, panel_h = (215.0, 300.0) if portrait else (300.0, 215.0)
+    half_l, half_w = plate.length_mm / 2, plate.width_mm / 2
+    left = -half_l - margins[0] if rng.random() < 0.6 else half_l + margins[0] - panel_w
+    top = half_w + margins[1] - panel_h if rng.random() < 0.6 else -half_w - margins[1]
+    return tuple(round(v, 3) for v in (left, top, left + panel_w, top + panel_h))
+
+
+def _in_disc(rng: np.random.Generator, radius: float, edge_bias: float = 0.0) -> np.ndarray:
+    angle = rng.uniform(0, 2 * np.pi)
+    rho = radius * rng.random() ** (1.0 / (2.0 + 6.0 * edge_bias))
+    return np.array([rho * math.cos(angle), rho * math.sin(angle)])
+
+
+def _sample_plaques(
+    rng: np.random.Generator,
+    count: int,
+    well_id: int,
+    center: np.ndarray,
+    well_radius: float,
+    first_index: int,
+    median_radius: float,
+    radius_spread: float,
+    harmonic_scale: np.ndarray,
+    softness: float,
+    clearness: float,
+    edge_bias: float,
+    max_overlap: float,
+) -> list[Plaque]:
+    radii = np.clip(median_radius * np.exp(rng.normal(0, radius_spread, count)), 0.05, 0.5 * well_radius)
+    placed: list[tuple[np.ndarray, float]] = []
+    out: list[Plaque] = []
+    for radius in radii:
+        for _attempt in range(30 if max_overlap < 1.0 else 1):
+            offset = _in_disc(rng, well_radius, edge_bias)
+            if max_overlap >= 1.0 or all(
+                (radius + r - np.hypot(*(offset - o))) <= 2 * max_overlap * min(radius, r) for o, r in placed
+            ):
+                break
+        else:
+            continue
+        placed.append((offset, float(radius)))
+        coefficients = rng.normal(0.0, 1.0, (len(harmonic_scale), 2)) * harmonic_scale[:, None]
+        out.append(
+            Plaque(
+                id=first_index + len(out) + 1,
+                well=well_id,
+                center_mm=_tuple2(center + offset),
+                radius_mm=round(float(radius), 4),
+                fourier=tuple(_tuple2(pair) for pair in coefficients),
+                softness=softness * rng.uniform(0.8, 1.25),
+                clearness=min(1.0, clearness * rng.uniform(0.9, 1.1)),
+            )
+        )
+    return out
+
+
+def _pipette_scratch(
+    rng: np.random.Generator, well_id: int, center: np.ndarray, radius: float, length: float, width: float
+) -> Scratch:
+    """The short hook-shaped streak where the pipette tip touched the layer, at the top of the well."""
+    angle = rng.normal(0.0, 0.08)
+    start = center + radius * 1.02 * np.array([math.sin(angle), -math.cos(angle)])
+    length *= rng.uniform(0.6, 1.3)
+    bend = rng.normal(0.0, 0.35)
+    t = np.linspace(0.0, 1.0, 5)
+    along = t * length
+    side = bend * length * t**2
+    direction = np.array([-math.sin(angle), math.cos(angle)])
+    normal = np.array([direction[1], -direction[0]])
+    points = start + along[:, None] * direction + side[:, None] * normal
+    return Scratch(well=well_id, points_mm=tuple(map(_tuple2, points)), width_mm=width * rng.uniform(0.8, 1.2))
+
+
+def _marker_writing(rng: np.random.Generator, plate: PlateGeometry, from_below: bool) -> list[MarkerStroke]:
+    """A few pen strokes in a free corner of the plate, in one ink."""
+    ink = tuple(np.round(rng.uniform([0.0, 0.2, 0.5], [0.15, 0.45, 0.85]), 4))
+    margin_x = plate.a1_x_mm - plate.well_radius_mm - plate.wall_mm
+    margin_y = plate.a1_y_mm - plate.well_radius_mm - plate.wall_mm
+    # the corner that appears top-left in the image: the plate's top-right when seen from below
+    corner_x = plate.length_mm - max(margin_x, 4.0) / 2 if from_below else max(margin_x, 4.0) / 2
+    start = np.array([corner_x, max(margin_y, 4.0) / 2 + 2.0]) + rng.normal(0, 1.0, 2)
+    size = rng.uniform(3.0, 7.0)
+    width = rng.uniform(0.35, 0.7)
+    strokes = []
+    for i in range(int(rng.integers(1, 4))):
+        stroke = _smooth_stroke(rng, start + np.array([i * size * 0.6, 0.0]), size)
+        strokes.append(MarkerStroke(points_mm=tuple(map(_tuple2, stroke)), width_mm=width, color_rgb=ink))
+    return strokes
+
+
+def _sample_post(c: SceneConfig, rng: np.random.Generator) -> PostProcessing:
+    p = c.post
+
+    def effect(name: str) -> Effect:
+        enabled = p.draw(name, rng)
+        strength = p.draw(f"{name}_strength", rng)
+        return Effect(enabled=enabled, strength=strength)
+
+    brightness = effect("brightness")
+    white_balance = effect("white_balance")
+    shift = rng.normal(0.0, 1.0, 3)
+    clarity = effect("clarity")
+    motion_blur = effect("motion_blur")
+    angle = rng.uniform(0, 180)
+    return PostProcessing(
+        brightness=brightness,
+        white_balance=white_balance,
+        white_balance_shift=tuple(np.round(1.0 + white_balance.strength * shift, 4)),
+        clarity=clarity,
+        motion_blur=motion_blur,
+        motion_blur_angle_deg=angle,
+        shadows=effect("shadows"),
+        chromatic_aberration=effect("chromatic_aberration"),
+        bloom=effect("bloom"),
+        sharpen=effect("sharpen"),
+        noise=effect("noise"),
+        jpeg=effect("jpeg"),
+    )

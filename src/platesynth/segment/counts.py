@@ -1,0 +1,271 @@
+"""Wells by grid position, plaques per well, and predicted counts against a person's counts.
+
+Detected wells are sorted into rows and columns of the plate's grid from their centres, allowing for a slightly
+rotated plate and for missing wells: the grid's angle is the median direction (modulo 90 degrees) from each well to
+its nearest neighbour, and after undoing it rows (columns) are the clusters of centres along y (x), numbered from
+the top (left) and skipping as many positions as the gaps between clusters span.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import math
+import os
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from scipy.spatial import cKDTree
+from skimage.measure import regionprops
+
+from platesynth.data.layout import WellCount, read_counts_csv
+from platesynth.errors import DatasetError, ParameterError
+from platesynth.io import atomic_path, read_image
+from platesynth.render.result import RenderResult, WellInfo
+from platesynth.scene import plate_geometry
+
+COUNT_TABLE_COLUMNS = ("image", "row", "col", "well", "count")
+
+
+def plate_shape(plate_format: int) -> tuple[int, int]:
+    """(rows, columns) of a plate format, e.g. 12 -> (3, 4).
+
+    Raises
+    ------
+    ParameterError
+        For a format the scene model does not know.
+    """
+    geometry = plate_geometry(plate_format)
+    return geometry.rows, geometry.cols
+
+
+def well_label(row: int, col: int, n_cols: int, from_below: bool = True) -> str:
+    """The label embossed on the plate (``"A1"``...) of the well at image grid position (row, col).
+
+    A plate photographed from below is mirrored left-right: its column numbers read ``n_cols .. 1``.
+    """
+    number = n_cols - col if from_below else col + 1
+    return f"{chr(ord('A') + row)}{number}"
+
+
+def _cluster_positions(values: np.ndarray, spacing: float) -> np.ndarray:
+    order = np.argsort(values)
+    steps = np.diff(values[order])
+    increments = np.where(steps > spacing / 2, np.maximum(1, np.round(steps / spacing)), 0)
+    positions = np.empty(len(values), np.int64)
+    positions[order] = np.concatenate([[0], np.cumsum(increments)]).astype(np.int64)
+    return positions
+
+
+def grid_positions(centres: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Row and column of each well in the plate grid from its centre (see the module docstring).
+
+    Parameters
+    ----------
+    centres : (n, 2) array of (y, x) well centres in pixels.
+
+    Returns
+    -------
+    rows, cols : (n,) int arrays, 0-based from the top-left.
+    """
+    centres = np.asarray(centres, float).reshape(-1, 2)
+    if len(centres) < 2:
+        return np.zeros(len(centres), np.int64), np.zeros(len(centres), np.int64)
+    distances, neighbours = cKDTree(centres).query(centres, k=2)
+    spacing = float(np.median(distances[:, 1]))
+    vectors = centres[neighbours[:, 1]] - centres
+    angles = np.mod(np.arctan2(vectors[:, 0], vectors[:, 1]) + np.pi / 4, np.pi / 2) - np.pi / 4
+    angle = float(np.median(angles))
+    cos, sin = math.cos(angle), math.sin(angle)
+    relative = centres - centres.mean(axis=0)
+    y = -sin * relative[:, 1] + cos * relative[:, 0]
+    x = cos * relative[:, 1] + sin * relative[:, 0]
+    return _cluster_positions(y, spacing), _cluster_positions(x, spacing)
+
+
+def _best_window(positions: np.ndarray, size: int) -> int:
+    """Start of the ``size``-long run of positions holding the most wells (the first such run on ties)."""
+    counts = np.bincount(positions)
+    if len(counts) <= size:
+        return 0
+    sums = np.convolve(counts, np.ones(size, int), mode="valid")
+    return int(np.argmax(sums))
+
+
+def sort_wells(
+    wells: np.ndarray, plate_format: int | None = 12, from_below: bool = True, min_area_fraction: float = 0.5
+) -> tuple[np.ndarray, list[WellInfo]]:
+    """Renumber a well instance mask by grid position and describe each well.
+
+    Parameters
+    ----------
+    wells : (H, W) integer well instance mask.
+    plate_format : wells per plate; where more rows or columns are found than the plate has, the block of the
+        plate's size holding the most wells is kept and the others are dropped. ``None`` keeps all.
+    from_below : whether the plate was photographed from below (for the labels).
+    min_area_fraction : wells smaller than this fraction of the median well area are dropped.
+
+    Returns
+    -------
+    wells : (H, W) uint8 mask with ids ``1..n`` in reading order (row by row).
+    info : one :class:`~platesynth.render.result.WellInfo` per kept well.
+    """
+    regions = regionprops(np.asarray(wells, np.int32))
+    if regions:
+        median_area = float(np.median([r.area for r in regions]))
+        regions = [r for r in regions if r.area >= min_area_fraction * median_area]
+    if not regions:
+        return np.zeros(wells.shape, np.uint8), []
+    rows, cols = grid_positions(np.array([r.centroid for r in regions]))
+    n_rows, n_cols = plate_shape(plate_format) if plate_format is not None else (rows.max() + 1, cols.max() + 1)
+    rows = rows - _best_window(rows, n_rows)
+    cols = cols - _best_window(cols, n_cols)
+    keep = (rows >= 0) & (rows < n_rows) & (cols >= 0) & (cols < n_cols)
+    order = sorted(np.flatnonzero(keep), key=lambda i: (rows[i], cols[i]))
+    if len(order) > 255:
+        raise ParameterError(f"{len(order)} wells found; a uint8 well mask holds at most 255")
+    lookup = np.zeros(int(wells.max()) + 1, np.uint8)
+    info = []
+    for new_id, i in enumerate(order, start=1):
+        lookup[regions[i].label] = new_id
+        info.append(WellInfo(new_id, int(rows[i]), int(cols[i]), well_label(int(rows[i]), int(cols[i]), int(n_cols), from_below)))
+    return lookup[wells], info
+
+
+def write_count_table(path: str | os.PathLike, rows: Sequence[tuple[str, int, int, str, int]]) -> Path:
+    """Write ``image,row,col,well,count`` rows as CSV, atomically."""
+    buffer = io.StringIO()
+    writer = csv.writer(buffer, lineterminator="\n")
+    writer.writerow(COUNT_TABLE_COLUMNS)
+    writer.writerows(rows)
+    path = Path(path)
+    with atomic_path(path) as tmp:
+        tmp.write_text(buffer.getvalue())
+    return path
+
+
+class CountMetrics:
+    """Streaming agreement of predicted with true per-well counts: MAE, RMSE, Pearson r, mean error.
+
+    ``update(predicted, true)`` takes equal-length sequences of counts (one entry per scored well).
+    """
+
+    def __init__(self) -> None:
+        self.reset()
+
+    def reset(self) -> None:
+        """Forget every well seen."""
+        self.predicted: list[float] = []
+        self.true: list[float] = []
+
+    def update(self, predicted: Sequence[float], true: Sequence[float]) -> None:
+        """Add scored wells."""
+        predicted, true = list(map(float, predicted)), list(map(float, true))
+        if len(predicted) != len(true):
+            raise ValueError(f"{len(predicted)} predicted counts but {len(true)} true counts")
+        self.predicted += predicted
+        self.true += true
+
+    def compute(self) -> dict[str, float | int]:
+        """``mae``, ``rmse``, ``pearson_r`` (NaN with fewer than two wells or a constant side), ``bias``
+        (mean of predicted - true) and ``n_wells``; the errors are NaN without wells."""
+        predicted, true = np.asarray(self.predicted), np.asarray(self.true)
+        n = len(true)
+        if n == 0:
+            return {"mae": math.nan, "rmse": math.nan, "pearson_r": math.nan, "bias": math.nan, "n_wells": 0}
+        error = predicted - true
+        if n >= 2 and predicted.std() > 0 and true.std() > 0:
+            pearson = float(np.corrcoef(predicted, true)[0, 1])
+        else:
+            pearson = math.nan
+        return {
+            "mae": float(np.abs(error).mean()),
+            "rmse": float(np.sqrt((error**2).mean())),
+            "pearson_r": pearson,
+            "bias": float(error.mean()),
+            "n_wells": n,
+        }
+
+
+def evaluate_counts(
+    predict: Callable[[np.ndarray], RenderResult],
+    images_dir: str | os.PathLike,
+    counts_csv: str | os.PathLike,
+    plate_format: int = 12,
+    baseline_count: float | None = None,
+    progress: Callable[[int, int], None] | None = None,
+) -> dict[str, Any]:
+    """Predicted plaques per well against a person's counts.
+
+    Parameters
+    ----------
+    predict : maps an image to a :class:`~platesynth.render.result.RenderResult` whose ``well_info`` gives each
+        predicted well's grid row and column (e.g. ``functools.partial(predict_image, model)``).
+    images_dir : folder holding the images named in the table's ``image`` column.
+    counts_csv : ``image,row,col,well,count`` table; blank counts are not scored.
+    plate_format : wells per plate; every (row, col) of the table must lie in its grid.
+    baseline_count : if given, also report the errors of predicting this count for every well.
+    progress : called with (images done, total) after each image.
+
+    Returns
+    -------
+    dict
+        The :meth:`CountMetrics.compute` figures, ``n_images``, ``n_wells_not_detected`` (scored wells where no
+        well was found: predicted 0), ``baseline`` (when asked) and ``wells``: one record per scored well
+        (``image, row, col, well, count, predicted, detected``).
+
+    Raises
+    ------
+    DatasetError
+        If the table is unreadable, names a well outside the plate or twice, or an image missing from ``images_dir``.
+    """
+    counts_csv, images_dir = Path(counts_csv), Path(images_dir)
+    n_rows, n_cols = plate_shape(plate_format)
+    by_image: dict[str, dict[tuple[int, int], WellCount]] = {}
+    for line, record in enumerate(read_counts_csv(counts_csv), start=2):
+        if record.row >= n_rows or record.col >= n_cols:
+            raise DatasetError(
+                f"{counts_csv}, line {line}: unknown well {record.well or '?'} at row {record.row}, col {record.col}: "
+                f"a {plate_format}-well plate has rows 0..{n_rows - 1} and columns 0..{n_cols - 1}"
+            )
+        wells = by_image.setdefault(record.image, {})
+        if (record.row, record.col) in wells:
+            raise DatasetError(f"{counts_csv}, line {line}: {record.image} row {record.row}, col {record.col} listed twice")
+        wells[(record.row, record.col)] = record
+    scored = {name: [w for w in wells.values() if w.count is not None] for name, wells in by_image.items()}
+    scored = {name: wells for name, wells in scored.items() if wells}
+    missing = [name for name in scored if not (images_dir / name).is_file()]
+    if missing:
+        raise DatasetError(f"{counts_csv}: {len(missing)} image(s) not found in {images_dir}, e.g. {missing[0]}")
+    metric, table = CountMetrics(), []
+    for done, (name, wells) in enumerate(scored.items(), start=1):
+        result = predict(read_image(images_dir / name))
+        predicted = result.plaque_counts()
+        ids = {(w.row, w.col): w.id for w in result.well_info}
+        for well in sorted(wells, key=lambda w: (w.row, w.col)):
+            well_id = ids.get((well.row, well.col))
+            table.append(
+                {
+                    "image": name,
+                    "row": well.row,
+                    "col": well.col,
+                    "well": well.well,
+                    "count": well.count,
+                    "predicted": predicted[well_id] if well_id is not None else 0,
+                    "detected": well_id is not None,
+                }
+            )
+        if progress is not None:
+            progress(done, len(scored))
+    metric.update([w["predicted"] for w in table], [w["count"] for w in table])
+    report: dict[str, Any] = metric.compute()
+    report["n_images"] = len(scored)
+    report["n_wells_not_detected"] = sum(not w["detected"] for w in table)
+    if baseline_count is not None:
+        baseline = CountMetrics()
+        baseline.update([baseline_count] * len(table), [w["count"] for w in table])
+        report["baseline"] = {"count": baseline_count, **baseline.compute()}
+    report["wells"] = table
+    return report

@@ -1,0 +1,212 @@
+"""The two-branch StarDist network: one shared U-Net encoder, one decoder per object class (wells, plaques).
+
+Each branch predicts, on its own grid, an object probability (as a logit) and ``n_rays`` radial distances in pixels of
+the network input. A model directory holds ``weights.pt`` (a torch state_dict) and ``config.json`` (:class:`ModelConfig`).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+from typing import Any
+
+import torch
+import torch.nn.functional as F
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
+from torch import nn
+
+from platesynth import __version__
+from platesynth.errors import DatasetError
+from platesynth.io import atomic_path, write_json
+
+BRANCHES = ("wells", "plaques")
+CONFIG_NAME = "config.json"
+WEIGHTS_NAME = "weights.pt"
+
+
+class BranchConfig(BaseModel):
+    """One output branch: its grid, distance scale and post-processing thresholds."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    grid: int = Field(1, description="output subsampling step (a power of two below 2**levels)")
+    dist_scale: float = Field(8.0, gt=0, description="pixels per unit of raw distance output (eases learning large radii)")
+    prob_thresh: float = Field(0.5, gt=0, lt=1, description="minimum object probability of a polygon candidate")
+    nms_thresh: float = Field(0.4, ge=0, le=1, description="overlap above which the less probable polygon is suppressed")
+
+
+class ModelConfig(BaseModel):
+    """Everything needed to rebuild a model and use it: architecture, input convention, thresholds, provenance."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    n_rays: int = Field(32, ge=3, description="radial distances per pixel")
+    channels: tuple[int, ...] = Field((16, 24, 32, 64), description="encoder channels per level (level i has stride 2**i)")
+    context_dilations: tuple[int, ...] = Field((2, 4), description="dilated 3x3 convolutions at the deepest level")
+    branches: dict[str, BranchConfig] = Field(
+        default_factory=lambda: {
+            "wells": BranchConfig(grid=4, dist_scale=32.0, prob_thresh=0.5, nms_thresh=0.3),
+            "plaques": BranchConfig(grid=2, dist_scale=8.0, prob_thresh=0.5, nms_thresh=0.4),
+        }
+    )
+    input_long_side: int = Field(512, ge=64, description="images are resized so that their longest side is this")
+    percentile_low: float = Field(1.0, ge=0, lt=100, description="intensity mapped to 0 (percentile over all channels)")
+    percentile_high: float = Field(99.8, gt=0, le=100, description="intensity mapped to 1")
+    plate_format: int = Field(12, description="wells per plate the model was trained for (grid shape for counting)")
+    training: dict[str, Any] = Field(default_factory=dict, description="description of the training data and recipe")
+    version: str = Field(__version__, description="platesynth version that wrote the model")
+
+    @field_validator("branches")
+    @classmethod
+    def _known_branches(cls, value: dict[str, BranchConfig]) -> dict[str, BranchConfig]:
+        if set(value) != set(BRANCHES):
+            raise ValueError(f"branches must be exactly {list(BRANCHES)}, got {sorted(value)}")
+        return value
+
+    @model_validator(mode="after")
+    def _grids_fit_levels(self) -> ModelConfig:
+        if len(self.channels) < 2:
+            raise ValueError("channels needs at least two levels")
+        for name, branch in self.branches.items():
+            level = math.log2(branch.grid)
+            if branch.grid < 1 or level != int(level) or level >= len(self.channels):
+                raise ValueError(f"{name} grid {branch.grid} must be a power of two below {2 ** len(self.channels)}")
+        if self.percentile_low >= self.percentile_high:
+            raise ValueError("percentile_low must be below percentile_high")
+        return self
+
+    @property
+    def size_multiple(self) -> int:
+        """Input height and width must be multiples of this (the deepest stride)."""
+        return 2 ** (len(self.channels) - 1)
+
+
+def _conv_block(in_channels: int, out_channels: int, dilations: tuple[int, ...] = (1, 1)) -> nn.Sequential:
+    layers: list[nn.Module] = []
+    for dilation in dilations:
+        layers += [
+            nn.Conv2d(in_channels, out_channels, 3, padding=dilation, dilation=dilation, bias=False),
+            nn.BatchNorm2d(out_channels),
+            nn.ReLU(inplace=True),
+        ]
+        in_channels = out_channels
+    return nn.Sequential(*layers)
+
+
+class _Decoder(nn.Module):
+    """Upsampling path from the deepest level down to the level of the branch's grid, then the two heads.
+
+    Each level has a single convolution after the skip concatenation: the decoders are most of the network's cost.
+    """
+
+    def __init__(self, channels: tuple[int, ...], level: int, n_rays: int, dist_scale: float):
+        super().__init__()
+        self.blocks = nn.ModuleList(
+            _conv_block(channels[i + 1] + channels[i], channels[i], (1,)) for i in range(len(channels) - 2, level - 1, -1)
+        )
+        width = channels[level]
+        self.features = nn.Sequential(nn.Conv2d(width, width, 3, padding=1), nn.ReLU(inplace=True))
+        self.prob = nn.Conv2d(width, 1, 1)
+        self.dist = nn.Conv2d(width, n_rays, 1)
+        self.dist_scale = dist_scale
+
+    def forward(self, skips: list[torch.Tensor]) -> tuple[torch.Tensor, torch.Tensor]:
+        x = skips[-1]
+        for block, skip in zip(self.blocks, reversed(skips[:-1])):
+            x = F.interpolate(x, size=skip.shape[-2:], mode="bilinear", align_corners=False)
+            x = block(torch.cat([x, skip], dim=1))
+        x = self.features(x)
+        return self.prob(x), self.dist(x) * self.dist_scale
+
+
+class StarDistTwoBranch(nn.Module):
+    """Shared U-Net encoder with a wells and a plaques StarDist decoder.
+
+    ``forward(images)`` takes ``(B, 3, H, W)`` float images (H and W multiples of ``config.size_multiple``) and returns
+    ``{branch: (prob_logits (B, 1, H/g, W/g), distances (B, n_rays, H/g, W/g))}`` with ``g`` the branch's grid.
+    """
+
+    def __init__(self, config: ModelConfig):
+        super().__init__()
+        self.config = config
+        channels = config.channels
+        self.encoder = nn.ModuleList(
+            _conv_block(3 if i == 0 else channels[i - 1], c) for i, c in enumerate(channels)
+        )
+        self.context = _conv_block(channels[-1], channels[-1], config.context_dilations) if config.context_dilations else nn.Identity()
+        self.decoders = nn.ModuleDict(
+            {
+                name: _Decoder(channels, int(math.log2(branch.grid)), config.n_rays, branch.dist_scale)
+                for name, branch in config.branches.items()
+            }
+        )
+
+    def forward(self, images: torch.Tensor) -> dict[str, tuple[torch.Tensor, torch.Tensor]]:
+        multiple = self.config.size_multiple
+        if images.shape[-2] % multiple or images.shape[-1] % multiple:
+            raise ValueError(f"input height and width must be multiples of {multiple}, got {tuple(images.shape[-2:])}")
+        skips = []
+        x = images
+        for i, block in enumerate(self.encoder):
+            if i:
+                x = F.max_pool2d(x, 2)
+            x = block(x)
+            skips.append(x)
+        skips[-1] = self.context(skips[-1])
+        return {name: decoder(skips) for name, decoder in self.decoders.items()}
+
+
+def save_model(model: StarDistTwoBranch, model_dir: str | Path) -> None:
+    """Write ``weights.pt`` and ``config.json`` into ``model_dir`` (atomically, weights first)."""
+    model_dir = Path(model_dir)
+    model_dir.mkdir(parents=True, exist_ok=True)
+    with atomic_path(model_dir / WEIGHTS_NAME) as tmp:
+        torch.save({k: v.detach().cpu() for k, v in model.state_dict().items()}, tmp)
+    write_json(model_dir / CONFIG_NAME, model.config.model_dump(mode="json"))
+
+
+def read_model_config(model_dir: str | Path) -> ModelConfig:
+    """The :class:`ModelConfig` stored in ``model_dir/config.json``.
+
+    Raises
+    ------
+    DatasetError
+        If the file is missing or not a valid model configuration.
+    """
+    path = Path(model_dir) / CONFIG_NAME
+    if not path.is_file():
+        raise DatasetError(f"{path}: no such file (is {model_dir} a model directory written by 'platesynth train'?)")
+    try:
+        return ModelConfig.model_validate(json.loads(path.read_text()))
+    except (json.JSONDecodeError, ValidationError) as exc:
+        first = str(exc).splitlines()[0] if isinstance(exc, json.JSONDecodeError) else exc.errors()[0]["msg"]
+        raise DatasetError(f"{path}: not a valid model configuration ({first})") from None
+
+
+def load_model(model_dir: str | Path, device: str | torch.device = "cpu") -> StarDistTwoBranch:
+    """Rebuild the network stored in ``model_dir`` in evaluation mode on ``device``.
+
+    Raises
+    ------
+    DatasetError
+        If ``config.json`` or ``weights.pt`` is missing, invalid, or the weights do not fit the configuration.
+    """
+    config = read_model_config(model_dir)
+    path = Path(model_dir) / WEIGHTS_NAME
+    if not path.is_file():
+        raise DatasetError(f"{path}: no such file (model weights missing)")
+    model = StarDistTwoBranch(config)
+    try:
+        state = torch.load(path, map_location="cpu", weights_only=True)
+        model.load_state_dict(state)
+    except (RuntimeError, OSError, EOFError, KeyError) as exc:
+        raise DatasetError(f"{path}: weights do not load into the configured network ({str(exc).splitlines()[0]})") from None
+    return model.to(device).eval()
+
+
+def select_device(device: str = "auto") -> torch.device:
+    """``"auto"`` picks CUDA where available, else the CPU; other values are passed to :class:`torch.device`."""
+    if device == "auto":
+        return torch.device("cuda" if torch.cuda.is_available() else "cpu")
+    return torch.device(device)

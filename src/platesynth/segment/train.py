@@ -1,0 +1,328 @@
+"""Training: datasets mixed by fraction, augmented patches, validation, checkpoints, resuming, threshold tuning.
+
+A model directory being trained holds, besides the model itself (``weights.pt``: the weights with the lowest
+validation loss so far, ``config.json``), ``train.json`` (the :class:`TrainConfig`), ``checkpoint.pt`` (the state at
+the end of the last finished epoch) and ``history.json`` (losses per epoch). Running the same training again
+resumes from the checkpoint; every random draw is keyed by the seed, the epoch and the sample's position, so a
+resumed run ends with the same weights as an uninterrupted one.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import torch
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
+
+from platesynth import __version__
+from platesynth.data.layout import DatasetItem, list_items, load_item, read_manifest
+from platesynth.errors import DatasetError, ParameterError
+from platesynth.io import atomic_path, write_json
+from platesynth.render.result import plaque_counts
+from platesynth.segment.data import Augmentation, MixSampler, SegmentationDataset
+from platesynth.segment.loss import segmentation_loss
+from platesynth.segment.matching import match_instances
+from platesynth.segment.model import BRANCHES, ModelConfig, StarDistTwoBranch, save_model, select_device
+from platesynth.segment.predict import nms_polygons, polygons_to_mask, predict_maps
+
+TRAIN_CONFIG_NAME = "train.json"
+CHECKPOINT_NAME = "checkpoint.pt"
+HISTORY_NAME = "history.json"
+PROB_THRESHOLDS = (0.3, 0.4, 0.5, 0.6, 0.7, 0.8)
+NMS_THRESHOLDS = (0.2, 0.3, 0.4, 0.5)
+
+
+class TrainConfig(BaseModel):
+    """What to train on and how; saved as ``train.json`` in the model directory."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    data: list[str] = Field(min_length=1, description="dataset directories in the platesynth layout")
+    mix: list[float] | None = Field(None, description="probability of drawing a sample from each dataset (default: by size)")
+    epochs: int = Field(20, ge=1)
+    steps_per_epoch: int = Field(50, ge=1, description="optimiser steps per epoch")
+    batch_size: int = Field(4, ge=1)
+    patch: tuple[int, int] = Field((256, 256), description="training patch (height, width) in working pixels")
+    learning_rate: float = Field(1e-3, gt=0, description="Adam's learning rate, decayed to 5% along a cosine")
+    val_fraction: float = Field(0.1, ge=0, lt=1, description="images of each dataset held out for validation")
+    max_val_images: int = Field(24, ge=1, description="at most this many validation images are evaluated")
+    seed: int = Field(0, ge=0)
+    augment: bool = True
+    lambda_dist: float = Field(0.2, ge=0, description="weight of the distance loss (StarDist: 0.2)")
+    background_reg: float = Field(1e-4, ge=0, description="pull of background distances to 0 (StarDist: 1e-4)")
+    within_well_weight: float = Field(0.0, ge=0, description="weight of the penalty on plaques predicted outside wells")
+    tune_thresholds: bool = Field(True, description="choose probability and NMS thresholds on the validation images")
+    num_workers: int = Field(0, ge=0, description="data-loading processes (0: in the training process)")
+
+    @field_validator("data")
+    @classmethod
+    def _absolute(cls, value: list[str]) -> list[str]:
+        return [str(Path(v).resolve()) for v in value]
+
+    @model_validator(mode="after")
+    def _mix_matches_data(self) -> TrainConfig:
+        if self.mix is not None:
+            if len(self.mix) != len(self.data):
+                raise ValueError(f"--mix has {len(self.mix)} fractions for {len(self.data)} datasets")
+            if any(f < 0 for f in self.mix) or sum(self.mix) <= 0:
+                raise ValueError("--mix fractions must be >= 0 and not all 0")
+        return self
+
+
+@dataclass
+class TrainSummary:
+    """Where a training run ended."""
+
+    model_dir: Path
+    epochs_done: int
+    best_val_loss: float
+    history: list[dict[str, float]]
+    thresholds: dict[str, tuple[float, float]]
+    resumed_from_epoch: int
+
+
+def split_items(items: Sequence[DatasetItem], val_fraction: float, seed: int) -> tuple[list[DatasetItem], list[DatasetItem]]:
+    """Seeded split of one dataset into training and validation items (at least one of each where possible)."""
+    n_val = 0 if val_fraction == 0 or len(items) < 2 else min(len(items) - 1, max(1, round(val_fraction * len(items))))
+    order = np.random.default_rng(seed).permutation(len(items))
+    val = set(order[:n_val].tolist())
+    return [it for i, it in enumerate(items) if i not in val], [it for i, it in enumerate(items) if i in val]
+
+
+def mean_plaques_per_well(items: Sequence[DatasetItem]) -> float:
+    """Mean number of plaques per well over the items' masks (the trivial baseline of a count predictor)."""
+    counts: list[int] = []
+    for item in items:
+        _, wells, plaques = load_item(item)
+        counts += plaque_counts(wells, plaques).values()
+    return float(np.mean(counts)) if counts else math.nan
+
+
+def _describe_data(config: TrainConfig, train_sets: list[list[DatasetItem]], val_sets: list[list[DatasetItem]]) -> dict[str, Any]:
+    sources = []
+    for directory, train_items, val_items in zip(config.data, train_sets, val_sets):
+        manifest = read_manifest(directory)
+        entry: dict[str, Any] = {"dir": directory, "n_train": len(train_items), "n_val": len(val_items)}
+        if manifest is not None:
+            entry.update(preset=manifest.preset, seed=manifest.seed, size=list(manifest.size), backend=manifest.backend)
+        sources.append(entry)
+    return {"sources": sources, "mix": _fractions(config, train_sets)}
+
+
+def _fractions(config: TrainConfig, train_sets: list[list[DatasetItem]]) -> list[float]:
+    weights = config.mix if config.mix is not None else [float(len(s)) for s in train_sets]
+    total = float(sum(weights))
+    return [w / total for w in weights]
+
+
+def _check_model_dir(model_dir: Path, config: TrainConfig, overwrite: bool) -> bool:
+    """Whether to resume; refuses a directory holding a different training unless ``overwrite``."""
+    saved_path = model_dir / TRAIN_CONFIG_NAME
+    if not saved_path.is_file():
+        if model_dir.is_dir() and any(model_dir.iterdir()) and not overwrite:
+            raise DatasetError(f"{model_dir}: not empty and not a training directory (use --overwrite to train there anyway)")
+        return False
+    try:
+        saved = TrainConfig.model_validate_json(saved_path.read_text())
+    except (ValidationError, ValueError) as exc:
+        if not overwrite:
+            raise DatasetError(f"{saved_path}: unreadable training configuration ({exc.__class__.__name__}); use --overwrite") from None
+        saved = None
+    if saved == config and (model_dir / CHECKPOINT_NAME).is_file():
+        return True
+    if not overwrite and saved is not None and saved != config:
+        changed = [k for k in config.model_fields if getattr(saved, k) != getattr(config, k)]
+        raise DatasetError(
+            f"{model_dir}: holds a different training (differs in {', '.join(changed)}); use --overwrite to replace it"
+        )
+    for name in (CHECKPOINT_NAME, HISTORY_NAME, TRAIN_CONFIG_NAME):
+        (model_dir / name).unlink(missing_ok=True)
+    return False
+
+
+def _collate(samples: list[dict[str, torch.Tensor]]) -> dict[str, torch.Tensor]:
+    return {key: torch.stack([s[key] for s in samples]) for key in samples[0]}
+
+
+def _loss_terms(config: TrainConfig) -> dict[str, float]:
+    return {"lambda_dist": config.lambda_dist, "background_reg": config.background_reg, "within_well_weight": config.within_well_weight}
+
+
+def validation_loss(model: StarDistTwoBranch, dataset: SegmentationDataset, config: TrainConfig, device: torch.device) -> float:
+    """Mean loss over whole validation images (NaN without any)."""
+    if len(dataset) == 0:
+        return math.nan
+    model.eval()
+    total = 0.0
+    with torch.no_grad():
+        for index in range(len(dataset)):
+            batch = {k: v[None].to(device) for k, v in dataset[index].items()}
+            _, parts = segmentation_loss(model(batch["image"]), batch, **_loss_terms(config))
+            total += parts["total"]
+    model.train()
+    return total / len(dataset)
+
+
+def tune_thresholds(
+    model: StarDistTwoBranch,
+    items: Sequence[DatasetItem],
+    prob_thresholds: Sequence[float] = PROB_THRESHOLDS,
+    nms_thresholds: Sequence[float] = NMS_THRESHOLDS,
+    tau: float = 0.5,
+) -> dict[str, tuple[float, float]]:
+    """Per branch, the (probability, NMS) threshold pair with the highest mean AP at ``tau`` over the items.
+
+    Ties go to the first pair in the order of the candidate lists. Without items the model's thresholds stay.
+    """
+    if not items:
+        return {name: (b.prob_thresh, b.nms_thresh) for name, b in model.config.branches.items()}
+    scores = {name: np.zeros((len(prob_thresholds), len(nms_thresholds))) for name in BRANCHES}
+    for item in items:
+        image, wells, plaques = load_item(item)
+        maps, working_shape = predict_maps(model, image)
+        for name, truth in (("wells", wells), ("plaques", plaques)):
+            for i, prob in enumerate(prob_thresholds):
+                for j, nms in enumerate(nms_thresholds):
+                    predicted = polygons_to_mask(nms_polygons(maps[name], prob, nms), working_shape, truth.shape)
+                    scores[name][i, j] += match_instances(truth, predicted, tau).ap
+    best = {}
+    for name, table in scores.items():
+        i, j = np.unravel_index(np.argmax(table), table.shape)
+        best[name] = (float(prob_thresholds[i]), float(nms_thresholds[j]))
+    return best
+
+
+def train(
+    config: TrainConfig,
+    model_dir: str | os.PathLike,
+    model_config: ModelConfig | None = None,
+    overwrite: bool = False,
+    device: str = "auto",
+    progress: Callable[[dict[str, Any]], None] | None = None,
+) -> TrainSummary:
+    """Train a two-branch StarDist model, or resume the same training, into ``model_dir``.
+
+    Parameters
+    ----------
+    config : data, schedule, augmentation and loss settings.
+    model_dir : output directory (see the module docstring).
+    model_config : architecture and input convention; default :class:`ModelConfig` defaults. Its thresholds are
+        replaced by tuned ones when ``config.tune_thresholds``; its ``training`` field is filled in.
+    overwrite : replace a different training found in ``model_dir``.
+    device : ``"auto"`` (CUDA where available), ``"cpu"``, ``"cuda"``...
+    progress : called after every step with ``{"epoch", "step", "steps", "loss"}``, and after every epoch with
+        ``{"epoch", "train_loss", "val_loss"}``.
+
+    Raises
+    ------
+    DatasetError, EmptyDatasetError
+        If a dataset is missing or inconsistent, or ``model_dir`` holds a different training.
+    ParameterError
+        If the patch size does not suit the architecture.
+    """
+    model_dir = Path(model_dir)
+    model_config = (model_config or ModelConfig()).model_copy(deep=True)
+    multiple = model_config.size_multiple
+    if config.patch[0] % multiple or config.patch[1] % multiple:
+        raise ParameterError(f"patch {config.patch[0]}x{config.patch[1]} must be a multiple of {multiple} on both sides")
+    datasets = [list_items(directory) for directory in config.data]
+    splits = [split_items(items, config.val_fraction, config.seed + number) for number, items in enumerate(datasets)]
+    train_sets, val_sets = [s[0] for s in splits], [s[1] for s in splits]
+    train_items = [item for items in train_sets for item in items]
+    sources = [number for number, items in enumerate(train_sets) for _ in items]
+    val_items = [item for items in val_sets for item in items][: config.max_val_images]
+    resume = _check_model_dir(model_dir, config, overwrite)
+    model_dir.mkdir(parents=True, exist_ok=True)
+    write_json(model_dir / TRAIN_CONFIG_NAME, config.model_dump(mode="json"))
+
+    torch_device = select_device(device)
+    torch.manual_seed(config.seed)
+    model = StarDistTwoBranch(model_config).to(torch_device)
+    optimizer = torch.optim.Adam(model.parameters(), lr=config.learning_rate)
+    total_steps = config.epochs * config.steps_per_epoch
+    scheduler = torch.optim.lr_scheduler.LambdaLR(
+        optimizer, lambda step: 0.05 + 0.95 * 0.5 * (1 + math.cos(math.pi * min(step, total_steps) / total_steps))
+    )
+    history: list[dict[str, float]] = []
+    best_val, start_epoch = math.inf, 0
+    if resume:
+        state = torch.load(model_dir / CHECKPOINT_NAME, map_location=torch_device, weights_only=False)
+        model.load_state_dict(state["model"])
+        optimizer.load_state_dict(state["optimizer"])
+        scheduler.load_state_dict(state["scheduler"])
+        history, best_val, start_epoch = state["history"], state["best_val"], state["epoch"]
+
+    augmentation = Augmentation() if config.augment else None
+    train_data = SegmentationDataset(train_items, model_config, config.patch, augmentation, seed=config.seed)
+    val_data = SegmentationDataset(val_items, model_config)
+    fractions = _fractions(config, train_sets)
+    model.train()
+    for epoch in range(start_epoch, config.epochs):
+        sampler = MixSampler(sources, fractions, config.steps_per_epoch * config.batch_size, config.seed, epoch)
+        loader = torch.utils.data.DataLoader(
+            train_data, batch_size=config.batch_size, sampler=sampler, collate_fn=_collate, num_workers=config.num_workers
+        )
+        losses = []
+        for step, batch in enumerate(loader, start=1):
+            batch = {k: v.to(torch_device) for k, v in batch.items()}
+            loss, parts = segmentation_loss(model(batch["image"]), batch, **_loss_terms(config))
+            optimizer.zero_grad(set_to_none=True)
+            loss.backward()
+            optimizer.step()
+            scheduler.step()
+            losses.append(parts["total"])
+            if progress is not None:
+                progress({"epoch": epoch + 1, "step": step, "steps": config.steps_per_epoch, "loss": parts["total"]})
+        val_loss = validation_loss(model, val_data, config, torch_device)
+        history.append({"epoch": epoch + 1, "train_loss": float(np.mean(losses)), "val_loss": val_loss})
+        if math.isnan(val_loss) or val_loss < best_val:
+            best_val = val_loss if not math.isnan(val_loss) else best_val
+            save_model(model, model_dir)
+        with atomic_path(model_dir / CHECKPOINT_NAME) as tmp:
+            torch.save(
+                {
+                    "model": model.state_dict(),
+                    "optimizer": optimizer.state_dict(),
+                    "scheduler": scheduler.state_dict(),
+                    "history": history,
+                    "best_val": best_val,
+                    "epoch": epoch + 1,
+                },
+                tmp,
+            )
+        write_json(model_dir / HISTORY_NAME, history)
+        if progress is not None:
+            progress(dict(history[-1]))
+
+    best = StarDistTwoBranch(model_config)
+    best.load_state_dict(torch.load(model_dir / "weights.pt", map_location="cpu", weights_only=True))
+    best = best.to(torch_device)
+    thresholds = tune_thresholds(best, val_items) if config.tune_thresholds else {
+        name: (b.prob_thresh, b.nms_thresh) for name, b in model_config.branches.items()
+    }
+    for name, (prob, nms) in thresholds.items():
+        best.config.branches[name].prob_thresh, best.config.branches[name].nms_thresh = prob, nms
+    best.config.training = {
+        **_describe_data(config, train_sets, val_sets),
+        "recipe": config.model_dump(mode="json", exclude={"data", "mix"}),
+        "epochs_done": len(history),
+        "best_val_loss": best_val if math.isfinite(best_val) else None,
+        "mean_plaques_per_well": mean_plaques_per_well(train_items),
+        "thresholds_tuned_on": len(val_items) if config.tune_thresholds else 0,
+    }
+    best.config.version = __version__
+    write_json(model_dir / "config.json", best.config.model_dump(mode="json"))
+    return TrainSummary(model_dir, len(history), best_val, history, thresholds, start_epoch)
+
+
+def read_history(model_dir: str | os.PathLike) -> list[dict[str, float]]:
+    """The per-epoch losses of a training directory (empty if none)."""
+    path = Path(model_dir) / HISTORY_NAME
+    return json.loads(path.read_text()) if path.is_file() else []
