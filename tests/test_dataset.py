@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import functools
 import json
+import os
 
 import numpy as np
 import pytest
@@ -198,6 +200,17 @@ def test_refuse_different_dataset_unless_overwrite(tmp_path):
     assert (tmp_path / "notes.txt").read_text() == "mine"
     assert [i.name for i in list_items(tmp_path)] == ["000000"]
     assert read_manifest(tmp_path).seed == 1
+
+
+def test_overwrite_resumes_the_same_dataset_and_replaces_a_broken_one(tmp_path):
+    manifest, _ = write_fake_dataset(tmp_path, count=2)
+    _, todo = prepare_directory(tmp_path, manifest, overwrite=True)
+    assert todo == [] and len(list_items(tmp_path)) == 2
+    (tmp_path / "manifest.json").write_text("{}")
+    with pytest.raises(DatasetError, match="not a valid platesynth manifest"):
+        check_directory(tmp_path, manifest)
+    _, todo = prepare_directory(tmp_path, manifest, overwrite=True)
+    assert todo == [0, 1] and read_manifest(tmp_path) == manifest
 
 
 def test_refuse_foreign_directory_and_file(tmp_path):
@@ -404,12 +417,21 @@ def test_failed_item_is_recorded_and_retried(tmp_path, monkeypatch):
     assert read_manifest(tmp_path).failed == {}
 
 
-def test_processes_equal_serial(rendered, tmp_path):
+def mark_worker(directory) -> None:
+    """Worker setup used by the tests: leaves a file named after the worker's process id."""
+    (directory / str(os.getpid())).write_text("set up")
+
+
+def test_processes_equal_serial_and_run_setup(rendered, tmp_path):
     source, _ = rendered
-    with ProcessExecutor(workers=2) as executor:
-        summary = render_dataset(tmp_path, build_manifest(count=3, coco=True, **SMALL), executor=executor)
+    marks = tmp_path / "marks"
+    marks.mkdir()
+    with ProcessExecutor(workers=2, setup=functools.partial(mark_worker, marks)) as executor:
+        summary = render_dataset(tmp_path / "ds", build_manifest(count=3, coco=True, **SMALL), executor=executor)
     assert summary.rendered == 3
-    assert tree_bytes(tmp_path) == tree_bytes(source)
+    assert tree_bytes(tmp_path / "ds") == tree_bytes(source)
+    workers = {int(p.name) for p in marks.iterdir()}
+    assert 1 <= len(workers) <= 2 and os.getpid() not in workers
 
 
 def test_build_manifest_rejects_bad_values():

@@ -26,7 +26,10 @@ def synthetic_image(seed: int, shape: tuple[int, int] = SMALL, noise: float = 6.
     height, width = shape
     yy, xx = np.mgrid[0:height, 0:width] / max(shape)
     channels = [
-        rng.uniform(60, 190) + rng.uniform(-60, 60) * xx + rng.uniform(-60, 60) * yy + 15 * np.sin(6 * xx * rng.uniform(1, 3))
+        rng.uniform(60, 190)
+        + rng.uniform(-60, 60) * xx
+        + rng.uniform(-60, 60) * yy
+        + 15 * np.sin(6 * xx * rng.uniform(1, 3))
         for _ in range(3)
     ]
     image = np.stack(channels, axis=-1)
@@ -40,7 +43,7 @@ def synthetic_image(seed: int, shape: tuple[int, int] = SMALL, noise: float = 6.
 
 def assert_parity(image: np.ndarray) -> None:
     """Our Nf, T1, T2 and naturalized image against granatpy's ``naturalize_rgb_image`` on the same array."""
-    granatpy_core = pytest.importorskip("granatpy.core", reason="granatpy 0.1.3 (reference implementation) not installed")
+    granatpy_core = pytest.importorskip("granatpy.core", reason="granatpy 0.1.3 (the reference) is not installed")
     expected_image, expected_nf, expected_t1, expected_t2, _ = granatpy_core.naturalize_rgb_image(image)
     result = naturalness(image)
     np.testing.assert_allclose(result.nf, expected_nf, rtol=0, atol=PARITY_TOLERANCE)

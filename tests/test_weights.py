@@ -169,8 +169,8 @@ def test_download_with_wrong_hash_is_discarded(clean_env, monkeypatch):
     with pytest.raises(WeightsNotFoundError) as info:
         resolve_weights(network)
     message = str(info.value)
-    assert f"download of https://weights.invalid/fake-weights.pth has sha256 {hashlib.sha256(b'tampered').hexdigest()[:16]}" \
-        in message
+    tampered_hash = hashlib.sha256(b"tampered").hexdigest()[:16]
+    assert f"download of https://weights.invalid/fake-weights.pth has sha256 {tampered_hash}" in message
     assert "expected 0123abcd" in message and "discarded" in message
     assert not clean_env.exists() or list(clean_env.iterdir()) == []
 

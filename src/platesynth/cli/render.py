@@ -8,7 +8,7 @@ from typing import Annotated, Any
 
 import typer
 import yaml
-from rich.progress import Progress, ProgressColumn, Task
+from rich.progress import ProgressColumn, Task
 from rich.text import Text
 
 from platesynth.cli._common import console, print_json, print_table, progress_bar, user_errors
@@ -25,10 +25,15 @@ _SIZE = re.compile(r"^\s*(\d+)\s*[xX]\s*(\d+)\s*$")
 Out = Annotated[Path, typer.Option("--out", "-o", help="Output directory of the dataset.")]
 Seed = Annotated[int, typer.Option("--seed", help="Dataset seed: image i gets a seed derived from (seed, i).")]
 Preset = Annotated[str | None, typer.Option("--preset", help="Scene preset (see `platesynth scene presets`).")]
-Plate = Annotated[int | None, typer.Option("--plate", help="Plate format: 6, 12, 24 or 96 wells (overrides the preset).")]
-ConfigFile = Annotated[Path | None, typer.Option("--config", help="YAML scene configuration (applied over the preset).")]
+Plate = Annotated[
+    int | None, typer.Option("--plate", help="Plate format: 6, 12, 24 or 96 wells (overrides the preset).")
+]
+ConfigFile = Annotated[
+    Path | None, typer.Option("--config", help="YAML scene configuration (applied over the preset).")
+]
 Overrides = Annotated[
-    list[str] | None, typer.Option("--set", help="Override one parameter, e.g. --set plaques.radius_mm=[0.5,1.0]; repeatable.")
+    list[str] | None,
+    typer.Option("--set", help="Override one parameter, e.g. --set plaques.radius_mm=[0.5,1.0]; repeatable."),
 ]
 Backend = Annotated[str, typer.Option("--backend", help="Renderer: raster (fast, numpy) or blender.")]
 
@@ -114,12 +119,16 @@ def render(
     config: ConfigFile = None,
     overrides: Overrides = None,
     backend: Backend = "raster",
-    workers: Annotated[int, typer.Option("--workers", "-j", help="Local worker processes (or Dask LocalCluster workers).")] = 1,
+    workers: Annotated[
+        int, typer.Option("--workers", "-j", help="Local worker processes (or Dask LocalCluster workers).")
+    ] = 1,
     executor: Annotated[str, typer.Option("--executor", help=f"Where to render: {' or '.join(EXECUTORS)}.")] = "local",
     scheduler: Annotated[
         str | None, typer.Option("--scheduler", help="Address of a running Dask scheduler (implies --executor dask).")
     ] = None,
-    connect_timeout: Annotated[float, typer.Option("--connect-timeout", help="Seconds to wait for the Dask scheduler.")] = 10.0,
+    connect_timeout: Annotated[
+        float, typer.Option("--connect-timeout", help="Seconds to wait for the Dask scheduler.")
+    ] = 10.0,
     coco: Annotated[bool, typer.Option("--coco", help="Also write annotations.coco.json (wells and plaques).")] = False,
     overwrite: Annotated[bool, typer.Option("--overwrite", help="Replace a different dataset found in --out.")] = False,
     as_json: Annotated[bool, typer.Option("--json", help="Print a JSON summary on stdout.")] = False,
@@ -192,6 +201,7 @@ def demo(
     preset: Preset = "high",
     seed: Seed = 0,
     workers: Annotated[int, typer.Option("--workers", "-j", help="Local worker processes.")] = 1,
+    overwrite: Annotated[bool, typer.Option("--overwrite", help="Replace a different dataset found in --out.")] = False,
 ) -> None:
     """Render a small 12-well dataset with counts and COCO, a contact sheet, and print its dataset metrics."""
     from platesynth.metrics.dataset import dataset_metrics
@@ -199,9 +209,9 @@ def demo(
     manifest = build_manifest(
         preset=preset, overrides={"plate.format": 12}, seed=seed, count=count, size=parse_size(size), coco=True
     )
-    check_directory(out, manifest)
+    check_directory(out, manifest, overwrite)
     with make_executor("local", workers=workers) as pool:
-        summary = _render_with_progress(out, manifest, pool, overwrite=False)
+        summary = _render_with_progress(out, manifest, pool, overwrite)
     _report(summary, as_json=False)
     items = list_items(out)
     tiles = [draw_outlines(*load_item(item)) for item in items[:12]]

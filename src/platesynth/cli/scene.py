@@ -1,9 +1,96 @@
-"""CLI commands for the scene part (registered by :func:`register`)."""
+"""``platesynth scene ...``: the scene parameters, presets, configurations and sampled scenes."""
 
 from __future__ import annotations
 
+import json
+from pathlib import Path
+from typing import Annotated
+
 import typer
+from rich.console import Console
+from rich.table import Table
+
+from platesynth.cli._common import print_json, user_errors
+
+app = typer.Typer(help="Scene parameters, presets and sampled scenes.", no_args_is_help=True)
+
+Preset = Annotated[str | None, typer.Option("--preset", help="Scene preset (see `platesynth scene presets`).")]
+ConfigFile = Annotated[Path | None, typer.Option("--config", help="YAML scene configuration (applied over the preset).")]
+Overrides = Annotated[
+    list[str] | None, typer.Option("--set", help="Override one parameter, e.g. --set plate.format=24; repeatable.")
+]
 
 
-def register(app: typer.Typer) -> None:
-    """Add this module's commands to the main platesynth app."""
+def _range_text(row: dict) -> str:
+    values = row["range"]
+    if row["type"] == "category" or len(values) != 2 or "choices" in row:
+        return ", ".join(str(v) for v in values)
+    return f"[{values[0]:g}, {values[1]:g}]"
+
+
+@app.command("params")
+@user_errors
+def params(as_json: Annotated[bool, typer.Option("--json", help="Print JSON instead of a table.")] = False) -> None:
+    """List every scene parameter: name, type, unit, valid range, default and description."""
+    from platesynth.scene import parameter_table
+
+    rows = parameter_table()
+    if as_json:
+        print_json(rows)
+        return
+    table = Table(title="scene parameters (YAML: section: {parameter: value})")
+    for column in ("name", "type", "unit", "range", "default", "description"):
+        table.add_column(column, overflow="fold")
+    for row in rows:
+        table.add_row(
+            row["name"], row["type"], row["unit"], _range_text(row), json.dumps(row["default"]), row["description"]
+        )
+    Console().print(table)
+
+
+@app.command("presets")
+@user_errors
+def presets(as_json: Annotated[bool, typer.Option("--json", help="Print JSON instead of text.")] = False) -> None:
+    """List the shipped presets with their first comment line."""
+    from platesynth.scene.config import PRESET_DIR, list_presets
+
+    rows = []
+    for name in list_presets():
+        first = (PRESET_DIR / f"{name}.yaml").read_text().splitlines()[0].lstrip("# ").strip()
+        rows.append({"name": name, "description": first, "path": str(PRESET_DIR / f"{name}.yaml")})
+    if as_json:
+        print_json(rows)
+        return
+    for row in rows:
+        typer.echo(f"{row['name']:12s} {row['description']}")
+
+
+@app.command("show")
+@user_errors
+def show(preset: Preset = None, config: ConfigFile = None, overrides: Overrides = None) -> None:
+    """Print the full, validated configuration as YAML (a starting point for --config files)."""
+    from platesynth.cli.render import parse_overrides
+    from platesynth.scene import dump_config, load_config
+
+    typer.echo(dump_config(load_config(preset, config, parse_overrides(overrides))), nl=False)
+
+
+@app.command("sample")
+@user_errors
+def sample(
+    seed: Annotated[int, typer.Option("--seed", min=0, help="Seed of the scene.")] = 0,
+    preset: Preset = None,
+    config: ConfigFile = None,
+    overrides: Overrides = None,
+) -> None:
+    """Draw one concrete scene and print it as JSON."""
+    from platesynth.cli.render import parse_overrides
+    from platesynth.scene import load_config, sample_scene
+
+    scene = sample_scene(load_config(preset, config, parse_overrides(overrides)), seed)
+    print_json(scene.model_dump(mode="json"))
+
+
+def register(main_app: typer.Typer) -> None:
+    """Add ``platesynth scene`` to the main app."""
+    main_app.add_typer(app, name="scene")

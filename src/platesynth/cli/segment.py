@@ -1,9 +1,278 @@
-"""CLI commands for the segment part (registered by :func:`register`)."""
+"""``platesynth train``, ``predict``, ``evaluate masks`` and ``evaluate counts``: the segmentation model's commands."""
 
 from __future__ import annotations
 
+import functools
+import json
+import math
+import re
+from pathlib import Path
+from typing import Annotated, Any
+
 import typer
+from pydantic import ValidationError
+
+from platesynth.cli._common import console, print_json, print_table, progress_bar, user_errors
+from platesynth.errors import ParameterError
+from platesynth.io import list_images
+
+ModelDir = Annotated[Path, typer.Option("--model", "-m", help="Model directory (written by `platesynth train`).")]
+Json = Annotated[bool, typer.Option("--json", help="Print the result as JSON on stdout.")]
+PlateFormat = Annotated[
+    int | None, typer.Option("--plate", help="Wells per plate, for sorting wells into rows and columns (default: the model's).")
+]
+FromBelow = Annotated[
+    bool,
+    typer.Option("--from-below/--from-above", help="Plates photographed through their bottom (mirrored labels) or from above."),
+]
+
+_PATCH = re.compile(r"^\s*(\d+)\s*[xX]\s*(\d+)\s*$")
+
+
+def _parse_patch(text: str) -> tuple[int, int]:
+    match = _PATCH.match(text)
+    if not match:
+        raise ParameterError(f"--patch {text!r}: expected HEIGHTxWIDTH in pixels, e.g. 256x256")
+    return int(match[1]), int(match[2])
+
+
+def _parse_mix(text: str | None) -> list[float] | None:
+    if text is None:
+        return None
+    try:
+        return [float(part) for part in text.split(",")]
+    except ValueError:
+        raise ParameterError(f"--mix {text!r}: expected comma-separated fractions, e.g. 0.9,0.1") from None
+
+
+def _validation_message(exc: ValidationError) -> str:
+    error = exc.errors()[0]
+    where = ".".join(str(part) for part in error["loc"])
+    return f"{where}: {error['msg']}" if where else error["msg"]
+
+
+def _model_config(path: Path | None) -> Any:
+    from platesynth.segment.model import ModelConfig
+
+    if path is None:
+        return ModelConfig()
+    try:
+        return ModelConfig.model_validate(json.loads(path.read_text()))
+    except OSError as exc:
+        raise ParameterError(f"{path}: cannot read model configuration ({exc.strerror})") from None
+    except json.JSONDecodeError as exc:
+        raise ParameterError(f"{path}: not JSON ({exc.msg}, line {exc.lineno})") from None
+    except ValidationError as exc:
+        raise ParameterError(f"{path}: {_validation_message(exc)}") from None
+
+
+@user_errors
+def train_command(
+    data: Annotated[list[Path], typer.Option("--data", "-d", help="Dataset directory in the platesynth layout; repeatable.")],
+    out: Annotated[Path, typer.Option("--out", "-o", help="Model directory to write (re-running resumes).")],
+    mix: Annotated[str | None, typer.Option("--mix", help="Sampling fraction per --data, e.g. 0.9,0.1 (default: by size).")] = None,
+    epochs: Annotated[int, typer.Option("--epochs", help="Epochs.")] = 20,
+    steps: Annotated[int, typer.Option("--steps", help="Optimiser steps per epoch.")] = 50,
+    batch_size: Annotated[int, typer.Option("--batch-size", help="Patches per step.")] = 4,
+    patch: Annotated[str, typer.Option("--patch", help="Training patch HEIGHTxWIDTH in working pixels.")] = "256x256",
+    learning_rate: Annotated[float, typer.Option("--lr", help="Adam learning rate (cosine decay to 5%).")] = 1e-3,
+    val_fraction: Annotated[float, typer.Option("--val-fraction", help="Fraction of each dataset held out.")] = 0.1,
+    seed: Annotated[int, typer.Option("--seed", help="Seed of the split, initial weights, sampling and augmentation.")] = 0,
+    augment: Annotated[bool, typer.Option("--augment/--no-augment", help="Flips, rotations, scale, intensity, noise.")] = True,
+    within_well: Annotated[float, typer.Option("--within-well", help="Weight of the penalty on plaques outside wells.")] = 0.0,
+    tune: Annotated[bool, typer.Option("--tune/--no-tune", help="Tune probability/NMS thresholds on the validation images.")] = True,
+    model_config: Annotated[
+        Path | None, typer.Option("--model-config", help="JSON ModelConfig (architecture, working size, grids).")
+    ] = None,
+    device: Annotated[str, typer.Option("--device", help="auto (CUDA if available), cpu or cuda.")] = "auto",
+    workers: Annotated[int, typer.Option("--workers", help="Data-loading processes.")] = 0,
+    overwrite: Annotated[bool, typer.Option("--overwrite", help="Replace a different training found in --out.")] = False,
+    as_json: Json = False,
+) -> None:
+    """Train the two-branch StarDist model (wells, plaques) on one or more datasets."""
+    from platesynth.segment.train import TrainConfig, train
+
+    try:
+        config = TrainConfig(
+            data=[str(d) for d in data],
+            mix=_parse_mix(mix),
+            epochs=epochs,
+            steps_per_epoch=steps,
+            batch_size=batch_size,
+            patch=_parse_patch(patch),
+            learning_rate=learning_rate,
+            val_fraction=val_fraction,
+            seed=seed,
+            augment=augment,
+            within_well_weight=within_well,
+            tune_thresholds=tune,
+            num_workers=workers,
+        )
+    except ValidationError as exc:
+        raise ParameterError(_validation_message(exc)) from None
+    bar = progress_bar(transient=False)
+    task_id = bar.add_task("epoch", total=config.epochs * config.steps_per_epoch, visible=False)
+
+    def progress(event: dict[str, Any]) -> None:
+        if "loss" in event:
+            done = (event["epoch"] - 1) * config.steps_per_epoch + event["step"]
+            bar.update(task_id, completed=done, visible=True, description=f"epoch {event['epoch']}/{config.epochs} loss {event['loss']:.3f}")
+        else:
+            bar.console.print(
+                f"epoch {event['epoch']}: train loss {event['train_loss']:.4f}, validation loss {event['val_loss']:.4f}",
+                highlight=False,
+            )
+
+    with bar:
+        summary = train(config, out, _model_config(model_config), overwrite=overwrite, device=device, progress=progress)
+    result = {
+        "model_dir": str(summary.model_dir),
+        "epochs": summary.epochs_done,
+        "resumed_from_epoch": summary.resumed_from_epoch,
+        "best_val_loss": summary.best_val_loss,
+        "thresholds": {name: {"prob": p, "nms": n} for name, (p, n) in summary.thresholds.items()},
+    }
+    if as_json:
+        print_json(result)
+    else:
+        console.print(f"model written to {summary.model_dir} (best validation loss {summary.best_val_loss:.4f})", highlight=False)
+
+
+def _image_paths(inputs: list[Path]) -> list[Path]:
+    paths: list[Path] = []
+    for path in inputs:
+        paths += list_images(path) if path.is_dir() else [path]
+    return paths
+
+
+def _thresholds(model: Any, overrides: dict[str, tuple[float | None, float | None]]) -> dict[str, tuple[float, float]]:
+    thresholds = {}
+    for name, (prob, nms) in overrides.items():
+        branch = model.config.branches[name]
+        thresholds[name] = (branch.prob_thresh if prob is None else prob, branch.nms_thresh if nms is None else nms)
+    return thresholds
+
+
+def _with_progress(description: str, run: Any) -> Any:
+    bar = progress_bar()
+    task_id: list[Any] = []
+
+    def progress(done: int, total: int) -> None:
+        if not task_id:
+            task_id.append(bar.add_task(description, total=total))
+        bar.update(task_id[0], completed=done)
+
+    with bar:
+        return run(progress)
+
+
+@user_errors
+def predict_command(
+    images: Annotated[list[Path], typer.Argument(help="Image files or folders of images.")],
+    model: ModelDir,
+    out: Annotated[Path, typer.Option("--out", "-o", help="Output directory (dataset layout plus counts.csv).")],
+    plate: PlateFormat = None,
+    from_below: FromBelow = True,
+    well_prob: Annotated[float | None, typer.Option("--well-prob", help="Override the wells' probability threshold.")] = None,
+    well_nms: Annotated[float | None, typer.Option("--well-nms", help="Override the wells' NMS threshold.")] = None,
+    plaque_prob: Annotated[float | None, typer.Option("--plaque-prob", help="Override the plaques' probability threshold.")] = None,
+    plaque_nms: Annotated[float | None, typer.Option("--plaque-nms", help="Override the plaques' NMS threshold.")] = None,
+    device: Annotated[str, typer.Option("--device", help="auto, cpu or cuda.")] = "auto",
+) -> None:
+    """Predict well and plaque instance masks and plaques per well (counts.csv) for plate images."""
+    from platesynth.segment.model import load_model, select_device
+    from platesynth.segment.predict import predict_files
+
+    network = load_model(model, select_device(device))
+    paths = _image_paths(images)
+    thresholds = _thresholds(network, {"wells": (well_prob, well_nms), "plaques": (plaque_prob, plaque_nms)})
+
+    def run(progress: Any) -> Path:
+        done = iter(range(1, len(paths) + 1))
+        return predict_files(
+            network, paths, out, thresholds, plate, from_below, progress=lambda _path: progress(next(done), len(paths))
+        )
+
+    counts = _with_progress("predicting", run)
+    console.print(f"{len(paths)} image(s) -> {out} (plaques per well: {counts})", highlight=False)
+
+
+evaluate_app = typer.Typer(help="Evaluate a model: instance masks (AP, IoU_R) or plaques per well against counts.", no_args_is_help=True)
+
+
+def _print_masks(report: dict[str, Any]) -> None:
+    rows: dict[str, Any] = {"images": report["n_images"]}
+    for name in ("wells", "plaques"):
+        for tau, summary in report[name].items():
+            rows[f"{name} AP@{tau}"] = f"{summary['ap_mean']:.3f} ± {summary['ap_std']:.3f}"
+            rows[f"{name} IoU_R@{tau}"] = f"{summary['iou_r_mean']:.3f} ± {summary['iou_r_std']:.3f}"
+    print_table(rows, title="instance masks (mean ± std over images)")
+
+
+@evaluate_app.command("masks")
+@user_errors
+def evaluate_masks_command(
+    model: ModelDir,
+    data: Annotated[Path, typer.Option("--data", "-d", help="Dataset with true masks (platesynth layout).")],
+    tau: Annotated[list[float] | None, typer.Option("--tau", help="IoU threshold; repeatable (default 0.5).")] = None,
+    device: Annotated[str, typer.Option("--device", help="auto, cpu or cuda.")] = "auto",
+    as_json: Json = False,
+) -> None:
+    """Per class, AP = TP/(TP+FP+FN) and IoU_R at each tau: mean and spread over images."""
+    from platesynth.segment.matching import evaluate_masks
+    from platesynth.segment.model import load_model, select_device
+    from platesynth.segment.predict import predict_image
+
+    taus = tuple(tau or (0.5,))
+    if any(not 0 < t <= 1 for t in taus):
+        raise ParameterError(f"--tau must be in (0, 1], got {', '.join(map(str, taus))}")
+    network = load_model(model, select_device(device))
+    report = _with_progress("evaluating", lambda progress: evaluate_masks(functools.partial(predict_image, network), data, taus, progress))
+    if as_json:
+        print_json(report)
+    else:
+        _print_masks(report)
+
+
+@evaluate_app.command("counts")
+@user_errors
+def evaluate_counts_command(
+    model: ModelDir,
+    images: Annotated[Path, typer.Option("--images", help="Folder holding the images named in the counts table.")],
+    counts: Annotated[Path, typer.Option("--counts", help="image,row,col,well,count table; blank counts are not scored.")],
+    plate: PlateFormat = None,
+    from_below: FromBelow = True,
+    table: Annotated[Path | None, typer.Option("--table", help="Also write the per-well table to this CSV file.")] = None,
+    device: Annotated[str, typer.Option("--device", help="auto, cpu or cuda.")] = "auto",
+    as_json: Json = False,
+) -> None:
+    """Predicted plaques per well against a person's counts: MAE, RMSE, Pearson r, and the training-mean baseline."""
+    from platesynth.segment.counts import evaluate_counts, write_count_table
+    from platesynth.segment.model import load_model, select_device
+    from platesynth.segment.predict import predict_image
+
+    network = load_model(model, select_device(device))
+    plate_format = plate or network.config.plate_format
+    predictor = functools.partial(predict_image, network, plate_format=plate_format, from_below=from_below)
+    baseline = network.config.training.get("mean_plaques_per_well")
+    baseline = baseline if isinstance(baseline, (int, float)) and math.isfinite(baseline) else None
+    report = _with_progress(
+        "counting", lambda progress: evaluate_counts(predictor, images, counts, plate_format, baseline, progress)
+    )
+    if table is not None:
+        rows = [(w["image"], w["row"], w["col"], w["well"], w["count"], w["predicted"], w["detected"]) for w in report["wells"]]
+        write_count_table(table, rows, columns=("image", "row", "col", "well", "count", "predicted", "detected"))
+    if as_json:
+        print_json(report)
+        return
+    rows = {key: report[key] for key in ("n_images", "n_wells", "n_wells_not_detected", "mae", "rmse", "pearson_r", "bias")}
+    if "baseline" in report:
+        rows.update({f"baseline ({report['baseline']['count']:.2f}/well) {k}": report["baseline"][k] for k in ("mae", "rmse")})
+    print_table(rows, title="plaques per well")
 
 
 def register(app: typer.Typer) -> None:
     """Add this module's commands to the main platesynth app."""
+    app.command("train")(train_command)
+    app.command("predict")(predict_command)
+    app.add_typer(evaluate_app, name="evaluate")

@@ -25,6 +25,7 @@ from platesynth.render import BACKENDS, render
 from platesynth.render.result import RenderResult
 from platesynth.scene import Scene, SceneConfig, load_config, sample_scene
 
+
 def item_seed(seed: int, index: int) -> int:
     """The 63-bit seed of item ``index`` of a dataset with seed ``seed`` (numpy ``SeedSequence`` spawn key)."""
     state = np.random.SeedSequence(seed, spawn_key=(index,)).generate_state(1, np.uint64)[0]
@@ -153,7 +154,8 @@ class RenderTask:
         try:
             write_item(item_paths(self.directory, name), result, params)
         except OSError as exc:
-            raise DatasetError(f"{exc.filename or self.directory}: cannot write item {name} ({exc.strerror or exc})") from None
+            where = exc.filename or self.directory
+            raise DatasetError(f"{where}: cannot write item {name} ({exc.strerror or exc})") from None
         return ItemRecord(index, name, None, time.perf_counter() - start)
 
 

@@ -40,7 +40,9 @@ def _runs_from_sorted_positions(positions: np.ndarray, total: int) -> list[int]:
     return runs.tolist() + ([trailing] if trailing else [])
 
 
-def encode_rle(mask: np.ndarray, offset: tuple[int, int] = (0, 0), shape: tuple[int, int] | None = None) -> dict[str, Any]:
+def encode_rle(
+    mask: np.ndarray, offset: tuple[int, int] = (0, 0), shape: tuple[int, int] | None = None
+) -> dict[str, Any]:
     """Uncompressed COCO RLE of a boolean mask.
 
     Parameters

@@ -71,10 +71,16 @@ class ProcessExecutor:
         )
         return self
 
-    def __exit__(self, *exc_info: object) -> None:
-        if self._pool is not None:
-            self._pool.shutdown(wait=True, cancel_futures=True)
-            self._pool = None
+    def __exit__(self, exc_type: type[BaseException] | None, *exc_info: object) -> None:
+        if self._pool is None:
+            return
+        if exc_type is not None:
+            # interrupted or failed: stop the workers now instead of waiting for their current items; what they
+            # were writing is left under temporary names, which the next run removes
+            for process in list(getattr(self._pool, "_processes", {}).values()):
+                process.terminate()
+        self._pool.shutdown(wait=True, cancel_futures=True)
+        self._pool = None
 
     def map_unordered(self, task: Callable[[T], R], items: Iterable[T]) -> Iterator[R]:
         """Yield ``task(item)`` for every item as the workers finish them."""
@@ -94,7 +100,8 @@ class ProcessExecutor:
                 for future in done:
                     yield future.result()
         except BrokenProcessPool as exc:
-            raise ExecutorError(f"a worker process died unexpectedly ({exc}); run the command again to resume") from None
+            message = f"a worker process died unexpectedly ({exc}); run the command again to resume"
+            raise ExecutorError(message) from None
         finally:
             for future in pending:
                 future.cancel()
@@ -153,12 +160,16 @@ class DaskExecutor:
         try:
             if self.scheduler is None:
                 self._cluster = LocalCluster(
-                    n_workers=self.workers, threads_per_worker=1, processes=True, dashboard_address=None
+                    n_workers=self.workers,
+                    threads_per_worker=1,
+                    processes=True,
+                    dashboard_address=None,
+                    scheduler_kwargs={"dashboard_address": ":0"},  # its HTTP server on a free port, not 8787
                 )
                 self._client = Client(self._cluster, timeout=f"{self.timeout}s")
             else:
                 self._client = Client(self.scheduler, timeout=f"{self.timeout}s")
-        except (OSError, TimeoutError, ValueError) as exc:
+        except (OSError, TimeoutError, ValueError, RuntimeError) as exc:
             self.__exit__()
             where = self.scheduler or "a local Dask cluster"
             raise ExecutorError(f"cannot connect to Dask scheduler {where}: {exc}") from None

@@ -73,7 +73,8 @@ class DatasetItem:
 
     def paths(self) -> tuple[Path, ...]:
         """All of the item's files, the params file last."""
-        return tuple(p for p in (self.image_path, self.wells_path, self.plaques_path, self.params_path) if p is not None)
+        paths = (self.image_path, self.wells_path, self.plaques_path, self.params_path)
+        return tuple(p for p in paths if p is not None)
 
 
 def item_paths(directory: str | os.PathLike, name: str) -> DatasetItem:

@@ -42,10 +42,13 @@ def _check_result(result: RenderResult, name: str) -> None:
     if image.dtype != np.uint8 or image.ndim != 3 or image.shape[2] != 3:
         raise DatasetError(f"item {name}: image must be (H, W, 3) uint8, got {image.dtype} {image.shape}")
     if wells.dtype != np.uint8 or plaques.dtype != np.uint16:
-        raise DatasetError(f"item {name}: masks must be uint8 wells and uint16 plaques, got {wells.dtype} and {plaques.dtype}")
+        raise DatasetError(
+            f"item {name}: masks must be uint8 wells and uint16 plaques, got {wells.dtype} and {plaques.dtype}"
+        )
     if wells.shape != image.shape[:2] or plaques.shape != image.shape[:2]:
         raise ShapeMismatchError(
-            f"item {name}: image {image.shape[:2]}, well mask {wells.shape} and plaque mask {plaques.shape} differ in size"
+            f"item {name}: image {image.shape[:2]}, well mask {wells.shape} and plaque mask {plaques.shape} "
+            "differ in size"
         )
 
 
@@ -92,40 +95,41 @@ def check_directory(directory: str | os.PathLike, manifest: Manifest, overwrite:
     Returns
     -------
     Manifest or None
-        The manifest already there when the run resumes (or extends) that same dataset; ``None`` when the
-        directory is missing or empty, or will be replaced (``overwrite``).
+        The manifest already there when the run resumes (or extends) that same dataset, with or without
+        ``overwrite``; ``None`` when the directory is missing or empty, or its content will be replaced
+        (``overwrite``).
 
     Raises
     ------
     DatasetError
-        If ``directory`` is a file; holds other files but no manifest; holds a different dataset; or holds
-        more images than asked for — unless ``overwrite`` (except for a file).
+        If ``directory`` is a file; or, without ``overwrite``, if it holds other files but no manifest, holds a
+        different dataset, or holds more images than asked for.
     """
     directory = Path(directory)
     if directory.exists() and not directory.is_dir():
         raise DatasetError(f"{directory}: exists and is not a directory")
     if not _is_non_empty_dir(directory):
         return None
-    existing = read_manifest(directory)
+    try:
+        existing = read_manifest(directory)
+    except DatasetError:
+        if not overwrite:
+            raise
+        existing = None
+    if existing is None:
+        problem = f"not empty and holds no platesynth dataset ({MANIFEST_NAME}); choose another directory"
+    elif differences := existing.differences(manifest):
+        problem = f"holds a different dataset ({', '.join(differences)} differ); choose another directory"
+    elif manifest.count < existing.count:
+        problem = (
+            f"holds a dataset of {existing.count} images, asked for {manifest.count}; "
+            "a dataset can be extended but not shrunk"
+        )
+    else:
+        return existing
     if overwrite:
         return None
-    if existing is None:
-        raise DatasetError(
-            f"{directory}: not empty and holds no platesynth dataset ({MANIFEST_NAME}); "
-            "choose another directory or pass --overwrite"
-        )
-    differences = existing.differences(manifest)
-    if differences:
-        raise DatasetError(
-            f"{directory}: holds a different dataset ({', '.join(differences)} differ); "
-            "pass --overwrite to replace it or choose another directory"
-        )
-    if manifest.count < existing.count:
-        raise DatasetError(
-            f"{directory}: holds a dataset of {existing.count} images, asked for {manifest.count}; "
-            "a dataset can be extended but not shrunk (pass --overwrite to start again)"
-        )
-    return existing
+    raise DatasetError(f"{directory}: {problem} or pass --overwrite to replace it")
 
 
 def remove_temporary_files(directory: str | os.PathLike) -> int:

@@ -19,7 +19,13 @@ from typing import Any
 
 from platesynth.metrics.dataset import dataset_metrics
 from platesynth.metrics.diversity import BrightnessVariability, PixelEntropy, grayscale, size_matched_entropy
-from platesynth.metrics.naturalness import NaturalnessResult, naturalize, naturalness, naturalness_factor, naturalness_map
+from platesynth.metrics.naturalness import (
+    NaturalnessResult,
+    naturalize,
+    naturalness,
+    naturalness_factor,
+    naturalness_map,
+)
 from platesynth.metrics.pair import (
     MetricSkippedWarning,
     compare_pair,

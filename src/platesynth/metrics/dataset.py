@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import os
 import warnings
-from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -18,12 +17,9 @@ import numpy as np
 from platesynth.errors import PlatesynthError, WeightsNotFoundError
 from platesynth.io import list_images, read_image, to_rgb_uint8
 from platesynth.metrics.diversity import BrightnessVariability, PixelEntropy, grayscale
-from platesynth.metrics.pair import MetricSkippedWarning
+from platesynth.metrics.pair import MetricSkippedWarning, ProgressCallback
 
-__all__ = ["ProgressCallback", "dataset_metrics"]
-
-ProgressCallback = Callable[[str, int, int], None]
-"""``progress(description, done, total)``, called once before the first image of a folder and after each image."""
+__all__ = ["dataset_metrics"]
 
 
 def _feature_extractors(names: tuple[str, ...]) -> dict[str, Any]:
@@ -94,7 +90,7 @@ def _scan_folder(
 
 
 def _distances(real: dict[str, Any], synthetic: dict[str, Any]) -> dict[str, float]:
-    from platesynth.metrics.frechet import frechet_distance_from_stats, kernel_distance
+    from platesynth.metrics.frechet import frechet_distance, kernel_distance
 
     distances: dict[str, float] = {}
     for name, real_stats in real["statistics"].items():
@@ -108,7 +104,8 @@ def _distances(real: dict[str, Any], synthetic: dict[str, Any]) -> dict[str, flo
                 stacklevel=3,
             )
             continue
-        distances[f"{prefix}_{name}"] = frechet_distance_from_stats(*synthetic_stats.compute(), *real_stats.compute())
+        # from the kept features rather than the moments: exact and fast when there are fewer images than dimensions
+        distances[f"{prefix}_{name}"] = frechet_distance(synthetic_stats.features, real_stats.features)
         kid_mean, kid_std = kernel_distance(synthetic_stats.features, real_stats.features)
         distances[f"kid_{name}"] = kid_mean
         distances[f"kid_{name}_std"] = kid_std
@@ -139,7 +136,8 @@ def dataset_metrics(
         With a reference, compute the Fréchet and kernel distances of deep features (AlexNet, and Inception when
         its weights are available; otherwise those keys are left out with a :class:`MetricSkippedWarning`).
     progress : callable, optional
-        ``progress(description, done, total)``, see :data:`ProgressCallback`.
+        ``progress(description, done, total)``: called with the folder's name before its first image and after each
+        image.
 
     Returns
     -------

@@ -170,7 +170,8 @@ class PixelEntropy(_PerPositionMetric):
         if self._counts is None:
             self._counts = np.zeros(self.bins * n_positions, dtype=np.uint8)
         if self.n_images + 1 > np.iinfo(self._counts.dtype).max:
-            self._counts = self._counts.astype(np.promote_types(self._counts.dtype, np.min_scalar_type(self.n_images + 1)))
+            wider = np.promote_types(self._counts.dtype, np.min_scalar_type(self.n_images + 1))
+            self._counts = self._counts.astype(wider)
         _count_values(self._counts, gray.ravel(), self._bin_of_value)
         self.n_images += 1
 
@@ -275,7 +276,9 @@ def size_matched_entropy(
     if not images:
         raise EmptyDatasetError("size_matched_entropy: no images")
     if int(subset_size) != subset_size or not 1 <= subset_size <= len(images):
-        raise ParameterError(f"subset_size must be an integer in 1..{len(images)} (the number of images), got {subset_size!r}")
+        raise ParameterError(
+            f"subset_size must be an integer in 1..{len(images)} (the number of images), got {subset_size!r}"
+        )
     if int(n_subsets) != n_subsets or n_subsets < 1:
         raise ParameterError(f"n_subsets must be a positive integer, got {n_subsets!r}")
     if size is None:

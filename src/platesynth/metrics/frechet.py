@@ -185,7 +185,9 @@ def kernel_distance(
     b = _check_features(features_b, "second feature set")
     _check_same_dimension(a, b)
     if n_subsets < 1 or subset_size < 2:
-        raise ParameterError(f"kernel distance needs n_subsets >= 1 and subset_size >= 2, got {n_subsets}, {subset_size}")
+        raise ParameterError(
+            f"kernel distance needs n_subsets >= 1 and subset_size >= 2, got {n_subsets} and {subset_size}"
+        )
     m = min(subset_size, a.shape[0], b.shape[0])
     rng = np.random.default_rng(seed)
     values = np.empty(n_subsets)

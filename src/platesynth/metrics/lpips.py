@@ -46,7 +46,9 @@ def _load_linear_weights(net: str) -> list[torch.Tensor]:
     resource = resources.files("platesynth.metrics").joinpath("lpips_weights", file_name)
     data = resource.read_bytes()
     if hashlib.sha256(data).hexdigest() != expected_sha256:
-        raise WeightsNotFoundError(f"{resource}: sha256 does not match the LPIPS v0.1 {net} weights; reinstall platesynth")
+        raise WeightsNotFoundError(
+            f"{resource}: sha256 does not match the LPIPS v0.1 {net} weights; reinstall platesynth"
+        )
     with resources.as_file(resource) as path:
         state_dict = torch.load(path, map_location="cpu", weights_only=True)
     return [state_dict[f"lin{i}.model.1.weight"] for i in range(len(state_dict))]

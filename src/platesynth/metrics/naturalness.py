@@ -50,9 +50,11 @@ _LAPLACIAN_WEIGHT = 0.5
 """Weight of t2 in nf (granatpy's ``theta``); t1 gets the rest."""
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class NaturalnessResult:
     """Naturalness of one image, per channel (red, green, blue; or the single gray channel).
+
+    Compare results through their arrays (``np.array_equal(a.nf, b.nf)``); ``==`` is identity.
 
     Attributes
     ----------
@@ -189,7 +191,9 @@ def _as_uint8_channels(image: np.ndarray) -> tuple[np.ndarray, tuple[str, ...]]:
 def _naturalness_of_channels(pixels: np.ndarray, channel_names: tuple[str, ...]) -> NaturalnessResult:
     height, width = pixels.shape[:2]
     if height < 3 or width < 3:
-        raise MetricUndefinedError(f"naturalness is undefined for a {height}x{width} image (it needs at least 3x3 pixels)")
+        raise MetricUndefinedError(
+            f"naturalness is undefined for a {height}x{width} image (it needs at least 3x3 pixels)"
+        )
     terms = np.array([_channel_terms(pixels[..., index], name) for index, name in enumerate(channel_names)])
     t1, t2 = terms[:, 0], terms[:, 1]
     nf = (1 - _LAPLACIAN_WEIGHT) * t1 + _LAPLACIAN_WEIGHT * t2
@@ -228,7 +232,8 @@ def _require_spread(counts: np.ndarray, quantity: str, pixel_count: int, channel
     if counts.max() == pixel_count:
         where = "the image" if channel_name == "gray" else f"the {channel_name} channel"
         raise MetricUndefinedError(
-            f"naturalness is undefined: the {quantity} of {where} takes a single value everywhere (e.g. a constant image)"
+            f"naturalness is undefined: the {quantity} of {where} takes a single value everywhere "
+            "(e.g. a constant image)"
         )
 
 

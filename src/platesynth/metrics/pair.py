@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import os
 import warnings
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -23,6 +24,7 @@ from platesynth.io import read_image, to_rgb_uint8
 
 __all__ = [
     "MetricSkippedWarning",
+    "ProgressCallback",
     "compare_pair",
     "mean_squared_error",
     "normalized_root_mse",
@@ -31,6 +33,10 @@ __all__ = [
 ]
 
 ImageOrPath = np.ndarray | str | os.PathLike
+
+ProgressCallback = Callable[[str, int, int], None]
+"""``progress(description, done, total)``: called with ``done=0`` when a long computation starts, then after each of
+its ``total`` steps (``description`` names the step now running)."""
 
 _SSIM_MIN_SIDE = 7
 """scikit-image's default SSIM window is 7x7."""
@@ -129,7 +135,8 @@ def structural_similarity(real: np.ndarray, synthetic: np.ndarray) -> float:
     data_range = _check_pair(real, synthetic)
     if min(real.shape[:2]) < _SSIM_MIN_SIDE:
         raise MetricUndefinedError(
-            f"SSIM needs images of at least {_SSIM_MIN_SIDE}x{_SSIM_MIN_SIDE} pixels, got {real.shape[1]}x{real.shape[0]}"
+            f"SSIM needs images of at least {_SSIM_MIN_SIDE}x{_SSIM_MIN_SIDE} pixels, "
+            f"got {real.shape[1]}x{real.shape[0]}"
         )
     channel_axis = -1 if real.ndim == 3 else None
     return float(skmetrics.structural_similarity(real, synthetic, channel_axis=channel_axis, data_range=data_range))
@@ -162,6 +169,7 @@ def compare_pair(
     lpips: bool = True,
     frechet: bool = True,
     resize: bool = False,
+    progress: ProgressCallback | None = None,
 ) -> dict[str, float]:
     """All pair metrics of a synthetic image against a real one.
 
@@ -180,6 +188,8 @@ def compare_pair(
     resize : bool
         If the sizes differ, resize the synthetic image to the real one (scikit-image ``resize``, bilinear with
         anti-aliasing, rounded to uint8) instead of raising :class:`ShapeMismatchError`.
+    progress : callable, optional
+        ``progress(description, done, total)`` after each step (images, naturalness, LPIPS, Fréchet).
 
     Returns
     -------
@@ -198,6 +208,17 @@ def compare_pair(
     MetricUndefinedError
         If an image is constant (naturalness undefined) or smaller than 7x7.
     """
+    steps = ["reading images", "naturalness"] + ["LPIPS"] * lpips + ["Fréchet distance"] * frechet
+    done = 0
+
+    def step_done() -> None:
+        nonlocal done
+        done += 1
+        if progress:
+            progress(steps[min(done, len(steps) - 1)], done, len(steps))
+
+    if progress:
+        progress(steps[0], 0, len(steps))
     real_name, real_image = _load(real, "real image")
     synthetic_name, synthetic_image = _load(synthetic, "synthetic image")
     real_rgb = to_rgb_uint8(real_image)
@@ -210,6 +231,7 @@ def compare_pair(
                 "the synthetic image to the real one"
             )
         synthetic_rgb = _resize_like(synthetic_rgb, real_rgb.shape)
+    step_done()
 
     nf_real = _naturalness_factor(real_rgb, real_name)
     nf_synthetic = _naturalness_factor(synthetic_rgb, synthetic_name)
@@ -222,10 +244,12 @@ def compare_pair(
         "nf_synthetic": nf_synthetic,
         "dnf": abs(nf_real - nf_synthetic),
     }
+    step_done()
     if lpips:
         from platesynth.metrics.lpips import lpips_distance
 
         result["lpips"] = float(lpips_distance(real_rgb, synthetic_rgb, net="alex"))
+        step_done()
     if frechet:
         from platesynth.metrics.frechet import get_feature_extractor, patch_frechet_distance
 
@@ -238,4 +262,5 @@ def compare_pair(
             warnings.warn(f"fid_patches_inception left out: {exc}", MetricSkippedWarning, stacklevel=2)
         else:
             result["fid_patches_inception"] = float(patch_frechet_distance(real_rgb, synthetic_rgb, inception))
+        step_done()
     return result

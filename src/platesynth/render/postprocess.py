@@ -13,13 +13,20 @@ import math
 
 import numpy as np
 from PIL import Image
-from scipy import ndimage
 
+from platesynth.render import _kernels as kernels
 from platesynth.scene.params import PostProcessing
 
 
+def gaussian_taps(sigma: float) -> np.ndarray:
+    """Half of a normalised Gaussian kernel, centre first."""
+    radius = max(1, int(math.ceil(3.0 * sigma)))
+    taps = np.exp(-0.5 * (np.arange(radius + 1) / max(sigma, 1e-3)) ** 2)
+    return (taps / (taps[0] + 2.0 * taps[1:].sum())).astype(np.float32)
+
+
 def gaussian_blur(image: np.ndarray, sigma: float) -> np.ndarray:
-    """Gaussian blur over the first two axes; large sigmas are done at reduced resolution.
+    """Gaussian blur over the first two axes; sigmas above 6 px are done on block means and upsampled.
 
     Parameters
     ----------
@@ -29,19 +36,19 @@ def gaussian_blur(image: np.ndarray, sigma: float) -> np.ndarray:
     image = np.asarray(image, dtype=np.float32)
     if sigma <= 0:
         return image.copy()
-    sigmas = (sigma, sigma) + (0,) * (image.ndim - 2)
+    planar = np.ascontiguousarray(image[..., None] if image.ndim == 2 else image)
     factor = int(sigma // 3)
     if factor < 2:
-        return ndimage.gaussian_filter(image, sigmas, mode="nearest", truncate=3.0)
-    height, width = image.shape[:2]
-    small_size = (max(1, width // factor), max(1, height // factor))
-    channels = [image] if image.ndim == 2 else [image[..., c] for c in range(image.shape[2])]
-    out = []
-    for channel in channels:
-        small = np.asarray(Image.fromarray(channel, mode="F").resize(small_size, Image.Resampling.BOX))
-        small = ndimage.gaussian_filter(small, math.sqrt(max(sigma**2 / factor**2 - 0.25, 0.1)), mode="nearest")
-        out.append(np.asarray(Image.fromarray(small, mode="F").resize((width, height), Image.Resampling.BILINEAR)))
-    return out[0] if image.ndim == 2 else np.stack(out, axis=-1)
+        out = np.empty_like(planar)
+        kernels.blur_separable(planar, gaussian_taps(sigma), out)
+    else:
+        small = kernels.downsample_mean(planar, factor)
+        blurred = np.empty_like(small)
+        # block means already carry a blur of about factor/sqrt(12)
+        kernels.blur_separable(small, gaussian_taps(math.sqrt(max(sigma**2 - factor**2 / 12.0, 0.25)) / factor), blurred)
+        out = np.empty_like(planar)
+        kernels.upsample_bilinear(blurred, factor, out)
+    return out[..., 0] if image.ndim == 2 else out
 
 
 def _luminance(image: np.ndarray) -> np.ndarray:
@@ -72,37 +79,32 @@ def clarity(image: np.ndarray, strength: float) -> np.ndarray:
 
 def motion_blur(image: np.ndarray, length_px: float, angle_deg: float) -> np.ndarray:
     """Average along a line of ``length_px`` pixels at ``angle_deg`` (camera shake)."""
-    steps = max(1, int(math.ceil(length_px)))
     if length_px <= 0.5:
         return image.copy()
-    dx, dy = math.cos(math.radians(angle_deg)), math.sin(math.radians(angle_deg))
-    out = np.zeros_like(image)
-    for t in np.linspace(-0.5, 0.5, steps + 1):
-        out += ndimage.shift(image, (t * length_px * dy, t * length_px * dx, 0), order=1, mode="nearest")
-    return out / (steps + 1)
+    planar = np.ascontiguousarray(image, dtype=np.float32)
+    out = np.empty_like(planar)
+    dx, dy = length_px * math.cos(math.radians(angle_deg)), length_px * math.sin(math.radians(angle_deg))
+    kernels.line_blur(planar, dx, dy, int(math.ceil(length_px)) + 1, out)
+    return out
 
 
 def shadows(image: np.ndarray, strength: float, rng: np.random.Generator) -> np.ndarray:
     """Darken by soft, low-frequency shadows (depth ``strength``) drawn from ``rng``."""
     height, width = image.shape[:2]
-    grid = rng.random((4, 5)).astype(np.float32)
-    field = np.asarray(Image.fromarray(grid, mode="F").resize((width, height), Image.Resampling.BICUBIC))
-    return image * (1.0 - strength * np.clip(field, 0.0, 1.0))[..., None]
+    factor = max(1, int(math.ceil(max(height / 3, width / 4))))
+    grid = rng.random((int(math.ceil(height / factor)), int(math.ceil(width / factor)), 1)).astype(np.float32)
+    field = np.empty((height, width, 1), dtype=np.float32)
+    kernels.upsample_bilinear(grid, factor, field)
+    return image * (1.0 - strength * field)
 
 
 def chromatic_aberration(image: np.ndarray, shift_px: float) -> np.ndarray:
     """Lateral colour: red scaled outward and blue inward about the centre by ``shift_px`` at the corners."""
     height, width = image.shape[:2]
     half_diagonal = 0.5 * math.hypot(width, height)
-    out = image.copy()
-    for channel, sign in ((0, 1.0), (2, -1.0)):
-        scale = 1.0 + sign * shift_px / half_diagonal
-        # PIL's affine maps output to input coordinates
-        a = 1.0 / scale
-        data = (a, 0.0, width / 2 * (1 - a), 0.0, a, height / 2 * (1 - a))
-        band = Image.fromarray(np.ascontiguousarray(image[..., channel]), mode="F")
-        out[..., channel] = np.asarray(band.transform((width, height), Image.Transform.AFFINE, data,
-                                                      Image.Resampling.BILINEAR, fillcolor=None))
+    scales = np.array([1.0 + shift_px / half_diagonal, 1.0, 1.0 - shift_px / half_diagonal])
+    out = np.empty_like(image)
+    kernels.scale_channels(np.ascontiguousarray(image, dtype=np.float32), scales, out)
     return out
 
 
@@ -119,13 +121,11 @@ def sharpen(image: np.ndarray, amount: float, sigma: float = 1.0) -> np.ndarray:
 
 
 def sensor_noise(image: np.ndarray, sd_levels: float, rng: np.random.Generator) -> np.ndarray:
-    """Signal-dependent Gaussian noise with sd ``sd_levels`` (8-bit levels) at mid grey; slightly correlated
-    across channels like a demosaiced sensor."""
-    height, width = image.shape[:2]
-    sd = sd_levels / 255.0 * np.sqrt(np.clip(image, 0.02, 1.0) / 0.5)
-    common = rng.standard_normal((height, width, 1), dtype=np.float32)
-    own = rng.standard_normal((height, width, 3), dtype=np.float32)
-    return image + sd * (0.5 * common + 0.85 * own)
+    """Signal-dependent, nearly Gaussian noise with sd ``sd_levels`` (8-bit levels) at mid grey, partly shared
+    by the channels like a demosaiced sensor's."""
+    out = np.array(image, dtype=np.float32, copy=True)
+    kernels.add_sensor_noise(out, np.float32(sd_levels / 255.0), int(rng.integers(0, 2**62)))
+    return out
 
 
 def to_uint8(image: np.ndarray) -> np.ndarray:

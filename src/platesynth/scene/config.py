@@ -252,7 +252,7 @@ class PlateConfig(Section):
     """The plate."""
 
     format: Dist = number(12, 6, 96, "wells", "number of wells (use {choice: [...]} to mix formats)", True, (6, 12, 24, 96))
-    transmittance: Dist = number([0.86, 0.93], 0.5, 1.0, "", "light passing the plastic between wells")
+    transmittance: Dist = number([0.72, 0.85], 0.3, 1.0, "", "light passing the plastic between wells")
     tint: Dist = number([0.0, 0.04], 0.0, 0.3, "", "blue tint of the plastic (0 = neutral)")
     rim_darkness: Dist = number([0.25, 0.45], 0.0, 1.0, "", "darkness of the well-wall outlines")
     label_strength: Dist = number([0.25, 0.5], 0.0, 1.0, "", "contrast of the embossed labels and rings")
@@ -262,7 +262,7 @@ class CameraConfig(Section):
     """Camera pose relative to the plate."""
 
     from_below: float = probability(1.0, "chance the plate is photographed through its bottom (mirrored)")
-    plate_fill: Dist = number([1.12, 1.2], 0.2, 1.5, "", "plate length as a fraction of the image width")
+    plate_fill: Dist = number([1.13, 1.21], 0.2, 1.5, "", "plate length as a fraction of the image width")
     rotation_deg: Dist = number({"normal": [0.0, 0.6]}, -10.0, 10.0, "deg", "in-plane rotation")
     tilt_deg: Dist = number([0.0, 2.0], 0.0, 15.0, "deg", "tilt of the plate away from the camera axis")
     offset: Dist = number({"normal": [0.0, 0.012]}, -0.2, 0.2, "image", "offset of the plate centre, per axis")
@@ -275,18 +275,22 @@ class BackgroundConfig(Section):
 
     kind: Categorical = category("lightbox", ("lightbox", "desk"), "a light box under the plate, or a desk")
     brightness: Dist = number([0.88, 1.0], 0.0, 1.0, "", "brightness of the light box panel or the desk")
-    desk_gray: Dist = number([0.25, 0.6], 0.0, 1.0, "", "grey level of the desk or the light box's frame")
+    desk_gray: Dist = number([0.12, 0.35], 0.0, 1.0, "", "grey level of the desk (or what surrounds the light box)")
     texture: Dist = number([0.0, 0.05], 0.0, 0.5, "", "amplitude of the desk's surface texture")
     ruler: float = probability(0.0, "chance of a ruler along the light box's edges")
-    panel_margin_mm: Dist = number([10, 60], 0, 300, "mm", "distance from the plate to the light panel's edges")
+    panel_margin_x_mm: Dist = number([40, 120], -50, 300, "mm",
+                                     "distance from the plate's side to the nearest side edge of the light panel")
+    panel_margin_y_mm: Dist = number([-5, 3], -50, 300, "mm",
+                                     "distance from the plate's top/bottom to the nearest edge of the light panel")
+    panel_below: float = probability(0.85, "chance the nearest panel edge lies below the plate (else above)")
 
 
 class StainConfig(Section):
     """The stained cell monolayer."""
 
-    hue_deg: Dist = number([258, 285], 0.0, 360.0, "deg", "stain hue (crystal violet 255-290, neutral red 345-360)")
-    saturation: Dist = number([0.7, 0.85], 0.0, 1.0, "", "stain saturation at nominal density")
-    value: Dist = number([0.88, 0.97], 0.0, 1.0, "", "stain value (brightness) at nominal density")
+    hue_deg: Dist = number([242, 288], 0.0, 360.0, "deg", "stain hue (crystal violet 240-290, neutral red 345-360)")
+    saturation: Dist = number([0.7, 1.0], 0.0, 1.0, "", "stain saturation at nominal density")
+    value: Dist = number([0.8, 0.92], 0.0, 1.0, "", "stain value (brightness) at nominal density")
     density: Dist = number([0.9, 1.15], 0.0, 3.0, "", "plate-wide stain density relative to nominal")
     well_density_jitter: Dist = number([0.02, 0.08], 0.0, 0.5, "", "relative density change from well to well (sd)")
     unevenness: Dist = number([0.04, 0.12], 0.0, 1.0, "", "low-frequency density variation")
@@ -307,7 +311,7 @@ class WellsConfig(Section):
 class PlaquesConfig(Section):
     """Plaque counts (a dilution series across columns), sizes and shapes."""
 
-    negative_plate: float = probability(0.1, "chance the plate holds no plaque at all")
+    negative_plate: float = probability(0.4, "chance the plate holds no plaque at all")
     top_count: Dist = number({"loguniform": [20, 3000]}, 0, 100000, "plaques", "mean count in the least diluted column")
     dilution_factor: Dist = number({"choice": [10, 5, 3], "weights": [0.7, 0.2, 0.1]}, 1.0, 100.0, "",
                                    "dilution from one column to the next")
@@ -315,8 +319,8 @@ class PlaquesConfig(Section):
     lysis_count: Dist = number([120, 300], 1, 100000, "plaques", "mean count above which a well is lysed")
     radius_mm: Dist = number({"loguniform": [0.35, 1.5]}, 0.05, 10.0, "mm", "median plaque radius of the plate")
     radius_spread: Dist = number([0.2, 0.45], 0.0, 2.0, "", "sd of log radius within the plate")
-    irregularity: Dist = number([0.03, 0.12], 0.0, 0.5, "", "amplitude of the outline's Fourier harmonics")
-    softness: Dist = number([0.15, 0.4], 0.0, 2.0, "", "width of the fuzzy edge, fraction of the radius")
+    irregularity: Dist = number([0.02, 0.08], 0.0, 0.5, "", "amplitude of the outline's Fourier harmonics")
+    softness: Dist = number([0.2, 0.45], 0.0, 2.0, "", "width of the fuzzy edge, fraction of the radius")
     clearness: Dist = number([0.75, 0.95], 0.0, 1.0, "", "fraction of stain removed inside a plaque")
     edge_bias: Dist = number([0.0, 0.3], 0.0, 1.0, "", "tendency of plaques to lie near the well's rim")
     max_overlap: Dist = number(1.0, 0.0, 1.0, "", "largest overlap of two plaques, fraction of the smaller radius")
@@ -337,8 +341,9 @@ class ArtifactsConfig(Section):
 class LightingConfig(Section):
     """Light and exposure."""
 
-    exposure_ev: Dist = number([-0.25, 0.15], -3.0, 3.0, "EV", "exposure correction")
-    color_temperature_k: Dist = number([5800, 8000], 2500, 12000, "K", "colour temperature of the light")
+    exposure_ev: Dist = number([-0.45, 0.0], -3.0, 3.0, "EV", "exposure correction")
+    color_temperature_k: Dist = number([8000, 12000], 2500, 15000, "K",
+                                       "colour temperature the camera's white balance leaves (higher: bluer)")
     vignetting: Dist = number([0.0, 0.15], 0.0, 1.0, "", "darkening at the image corners")
     glare: Dist = number([0.0, 0.1], 0.0, 1.0, "", "strength of a soft glare spot")
 
@@ -546,4 +551,4 @@ def load_config(
 
 def dump_config(config: SceneConfig) -> str:
     """The configuration as YAML, in the form :func:`load_config` reads."""
-    return yaml.safe_dump(config.model_dump(), sort_keys=False)
+    return yaml.safe_dump(config.model_dump(), sort_keys=False, default_flow_style=None)

@@ -62,7 +62,8 @@ def plate_geometry(fmt: int) -> PlateGeometry:
 
 
 def color_temperature_rgb(kelvin: float) -> tuple[float, float, float]:
-    """Approximate RGB gains of a black body at ``kelvin``, normalised to green = 1 (6500 K ~ neutral)."""
+    """Approximate sRGB-encoded colour of a black body at ``kelvin`` (Tanner Helland's fit), scaled so that
+    green = 1 (6500 K is about neutral)."""
     t = kelvin / 100.0
     red = 255.0 if t <= 66 else 329.698727446 * (t - 60) ** -0.1332047592
     green = 99.4708025861 * math.log(t) - 161.1195681661 if t <= 66 else 288.1221695283 * (t - 60) ** -0.0755148492
@@ -137,14 +138,15 @@ def sample_scene(config: SceneConfig, seed: int) -> Scene:
     brightness = c.background.draw("brightness", rng)
     texture = c.background.draw("texture", rng)
     ruler = c.background.draw("ruler", rng)
-    margins = [c.background.draw("panel_margin_mm", rng) for _ in range(2)]
+    margins = [c.background.draw("panel_margin_x_mm", rng), c.background.draw("panel_margin_y_mm", rng)]
+    below = c.background.draw("panel_below", rng)
     background = Background(
         kind=kind,
         brightness=brightness,
         color_rgb=tuple(np.clip(np.round([gray * (1 + warmth), gray, gray * (1 - warmth)], 4), 0, 1)),
         texture=texture,
         ruler=ruler,
-        panel_mm=_light_panel(rng, plate, margins),
+        panel_mm=_light_panel(rng, plate, margins, below),
         frame_mm=rng.uniform(8.0, 20.0),
     )
 
@@ -186,7 +188,7 @@ def sample_scene(config: SceneConfig, seed: int) -> Scene:
     extra_scratches = c.artifacts.draw("extra_scratches", rng)
     debris_rate = c.artifacts.draw("debris", rng)
     radius = plate.well_radius_mm
-    harmonic_scale = irregularity / np.arange(2, N_HARMONICS + 2) ** 0.7
+    harmonic_scale = irregularity / np.arange(2, N_HARMONICS + 2) ** 1.2
 
     for plate_row in range(plate.rows):
         for plate_col in range(plate.cols):
@@ -284,13 +286,17 @@ def sample_scene(config: SceneConfig, seed: int) -> Scene:
     )
 
 
-def _light_panel(rng: np.random.Generator, plate: PlateGeometry, margins: list[float]) -> tuple[float, ...]:
-    """An A4-sized light panel with the plate near one of its corners (``margins`` from two edges)."""
+def _light_panel(
+    rng: np.random.Generator, plate: PlateGeometry, margins: list[float], below: bool
+) -> tuple[float, ...]:
+    """An A4-sized light panel with the plate near one of its corners: ``margins`` (mm) from the nearest side
+    edge and from the nearest top/bottom edge (below the plate when ``below``); negative: the plate overhangs."""
     portrait = rng.random() < 0.7
     panel_w, panel_h = (215.0, 300.0) if portrait else (300.0, 215.0)
+    panel_w, panel_h = max(panel_w, plate.length_mm + 2 * margins[0]), max(panel_h, plate.width_mm + 2 * margins[1])
     half_l, half_w = plate.length_mm / 2, plate.width_mm / 2
     left = -half_l - margins[0] if rng.random() < 0.6 else half_l + margins[0] - panel_w
-    top = half_w + margins[1] - panel_h if rng.random() < 0.6 else -half_w - margins[1]
+    top = half_w + margins[1] - panel_h if below else -half_w - margins[1]
     return tuple(round(v, 3) for v in (left, top, left + panel_w, top + panel_h))
 
 

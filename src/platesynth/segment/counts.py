@@ -134,11 +134,13 @@ def sort_wells(
     return lookup[wells], info
 
 
-def write_count_table(path: str | os.PathLike, rows: Sequence[tuple[str, int, int, str, int]]) -> Path:
-    """Write ``image,row,col,well,count`` rows as CSV, atomically."""
+def write_count_table(
+    path: str | os.PathLike, rows: Sequence[Sequence[Any]], columns: Sequence[str] = COUNT_TABLE_COLUMNS
+) -> Path:
+    """Write rows (by default ``image,row,col,well,count``) as CSV, atomically."""
     buffer = io.StringIO()
     writer = csv.writer(buffer, lineterminator="\n")
-    writer.writerow(COUNT_TABLE_COLUMNS)
+    writer.writerow(columns)
     writer.writerows(rows)
     path = Path(path)
     with atomic_path(path) as tmp:

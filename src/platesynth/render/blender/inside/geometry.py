@@ -1,8 +1,8 @@
 """The plate, its wells and the plaques as geometry-node groups fed by point clouds.
 
 World units are millimetres. Plate coordinates (x right, y down, seen from above, origin at the A1 corner)
-map to Blender's world as ``(x, -y, z)`` with ``z`` up and the plate's bottom at ``z = 0``; the cell monolayer
-lies on the well floors at ``z = FLOOR_MM``.
+map to Blender's world as ``(x, -y, z)`` with ``z`` towards the plate's lid; the cell monolayer lies on the well
+floors at ``z = 0``, the plane the raster renderer's homography maps.
 
 Each group's parameters are modifier inputs (named sockets of the group's interface), so a saved .blend can be
 re-driven by people or other tools; per-well and per-plaque values are attributes of the point clouds.
@@ -18,8 +18,6 @@ import numpy as np
 
 from platesynth.render.blender.inside.nodes import add, feed, link, math, output, vector_math
 
-FLOOR_MM = 1.0
-"""Height of the well floors (the plastic bottom's thickness), mm."""
 
 LAYER_STEP_MM = 0.002
 """Height between stacked plaques (later plaques lie nearer the camera)."""
@@ -36,6 +34,13 @@ def point_cloud(name: str, positions: np.ndarray, attributes: Mapping[str, np.nd
     positions = np.asarray(positions, dtype=np.float32).reshape(-1, 3)
     mesh.vertices.add(len(positions))
     mesh.vertices.foreach_set("co", positions.ravel())
+    _set_point_attributes(mesh, attributes)
+    obj = bpy.data.objects.new(name, mesh)
+    bpy.context.scene.collection.objects.link(obj)
+    return obj
+
+
+def _set_point_attributes(mesh: bpy.types.Mesh, attributes: Mapping[str, np.ndarray]) -> None:
     for attribute_name, values in attributes.items():
         values = np.asarray(values)
         if values.ndim == 2:
@@ -51,9 +56,6 @@ def point_cloud(name: str, positions: np.ndarray, attributes: Mapping[str, np.nd
         if len(values):
             attribute.data.foreach_set(field, values.ravel())
     mesh.update()
-    obj = bpy.data.objects.new(name, mesh)
-    bpy.context.scene.collection.objects.link(obj)
-    return obj
 
 
 def set_modifier_inputs(modifier: bpy.types.NodesModifier, values: Mapping[str, Any]) -> None:
@@ -77,7 +79,7 @@ def add_modifier(obj: bpy.types.Object, group: bpy.types.NodeTree, inputs: Mappi
     return modifier
 
 
-def _new_group(name: str, inputs: Sequence[tuple[str, str, Any]]) -> tuple[bpy.types.NodeTree, bpy.types.Node, bpy.types.Node]:
+def new_group(name: str, inputs: Sequence[tuple[str, str, Any]]) -> tuple[bpy.types.NodeTree, bpy.types.Node, bpy.types.Node]:
     """A geometry-node group with a Geometry input, the given (name, socket type, default) inputs and a Geometry output."""
     group = bpy.data.node_groups.new(name, "GeometryNodeTree")
     group.interface.new_socket(name="Geometry", in_out="INPUT", socket_type="NodeSocketGeometry")
@@ -110,14 +112,14 @@ def wells_group(material: bpy.types.Material) -> bpy.types.NodeTree:
     """Geometry nodes turning well-centre points into monolayer discs (one per well, plus random emptying).
 
     Inputs: ``Well Radius`` (mm), ``Floor Height`` (mm), ``Segments``, ``Empty Probability`` and ``Seed`` (extra
-    random emptying on top of the points' ``emptied`` attribute; 0 for a concrete scene). Point attributes are
+    random emptying on top of the points' ``well_emptied`` attribute; 0 for a concrete scene). Point attributes are
     passed on to the discs (``well_id``, stain values...), plus ``center`` (the well centre) for the shader.
     """
-    group, group_in, group_out = _new_group(
+    group, group_in, group_out = new_group(
         "platesynth.wells",
         [
             ("Well Radius", "NodeSocketFloat", 11.0),
-            ("Floor Height", "NodeSocketFloat", FLOOR_MM),
+            ("Floor Height", "NodeSocketFloat", 0.0),
             ("Segments", "NodeSocketInt", 128),
             ("Empty Probability", "NodeSocketFloat", 0.0),
             ("Seed", "NodeSocketInt", 0),
@@ -126,8 +128,8 @@ def wells_group(material: bpy.types.Material) -> bpy.types.NodeTree:
     points = _store(group, output(group_in, "Geometry"), "center", output(add(group, "GeometryNodeInputPosition"), "Position"), "FLOAT_VECTOR")
     chance = add(group, "FunctionNodeRandomValue", data_type="BOOLEAN")
     feed(group, chance, Probability=output(group_in, "Empty Probability"), ID=_named(group, "well_id", "INT"), Seed=output(group_in, "Seed"))
-    emptied = math(group, "MAXIMUM", _named(group, "emptied"), output(chance, 3))
-    points = _store(group, points, "emptied", emptied)
+    emptied = math(group, "MAXIMUM", _named(group, "well_emptied"), output(chance, 0))
+    points = _store(group, points, "well_emptied", emptied)
     disc = add(group, "GeometryNodeMeshCircle", fill_type="NGON")
     feed(group, disc, Vertices=output(group_in, "Segments"), Radius=output(group_in, "Well Radius"))
     instances = feed(group, add(group, "GeometryNodeInstanceOnPoints"), Points=points, Instance=disc)
@@ -143,46 +145,46 @@ def wells_group(material: bpy.types.Material) -> bpy.types.NodeTree:
 def plaques_group(material: bpy.types.Material, harmonics: int) -> bpy.types.NodeTree:
     """Geometry nodes turning plaque-centre points into irregular discs clipped to their wells.
 
-    Each point carries ``radius``, ``layer`` (drawing order), ``well_center`` and the outline coefficients
-    ``fourier_a{k}``/``fourier_b{k}`` for ``k = 2 .. harmonics + 1``; the outline is
-    ``r(t) = radius * (1 + sum_k a_k cos(k t) + b_k sin(k t))`` with ``t`` the angle in plate coordinates (y down).
-    Each disc gets the attribute ``rim``: 0 at its centre, 1 on its outline (the shader's centre-to-rim gradient).
-    Inputs: ``Segments``, ``Well Radius`` (clip radius, mm), ``Floor Height``, ``Layer Step`` (mm between stacked
-    plaques; negative when the camera looks from below), ``Radius Scale``, ``Irregularity Scale``.
+    Each point carries ``radius``, ``softness``, ``layer`` (drawing order), ``well_center`` and the outline
+    coefficients ``fourier_a{k}``/``fourier_b{k}`` for ``k = 2 .. harmonics + 1``; the outline is
+    ``r(t) = radius * (1 + sum_k a_k cos(k t) + b_k sin(k t))`` with ``t`` the angle in plate coordinates
+    (y down), grown by ``Margin * softness * radius`` (the fuzzy edge outside the outline; 0 for the masks).
+    Points beyond the well's radius are pulled back onto its circle. Discs are stacked ``Layer Step`` apart
+    (negative where the camera looks from below), starting ``Layer Offset`` steps above ``Floor Height``.
     """
-    group, group_in, group_out = _new_group(
+    group, group_in, group_out = new_group(
         "platesynth.plaques",
         [
             ("Segments", "NodeSocketInt", 48),
             ("Well Radius", "NodeSocketFloat", 11.0),
-            ("Floor Height", "NodeSocketFloat", FLOOR_MM),
+            ("Floor Height", "NodeSocketFloat", 0.0),
             ("Layer Step", "NodeSocketFloat", LAYER_STEP_MM),
+            ("Layer Offset", "NodeSocketFloat", 0.0),
+            ("Margin", "NodeSocketFloat", 0.0),
             ("Radius Scale", "NodeSocketFloat", 1.0),
             ("Irregularity Scale", "NodeSocketFloat", 1.0),
         ],
     )
     position = output(add(group, "GeometryNodeInputPosition"), "Position")
     points = _store(group, output(group_in, "Geometry"), "center", position, "FLOAT_VECTOR")
-    radius = math(group, "MULTIPLY", _named(group, "radius"), output(group_in, "Radius Scale"))
     disc = add(group, "GeometryNodeMeshCircle", fill_type="TRIANGLE_FAN")
     feed(group, disc, Vertices=output(group_in, "Segments"), Radius=1.0)
+    radius = math(group, "MULTIPLY", _named(group, "radius"), output(group_in, "Radius Scale"))
     instances = feed(group, add(group, "GeometryNodeInstanceOnPoints"), Points=points, Instance=disc, Scale=radius)
     realized = feed(group, add(group, "GeometryNodeRealizeInstances"), Geometry=instances)
 
-    # rim coordinate and outline angle from the offset to the plaque's centre
+    # the outline: scale each rim point's offset from the centre by the Fourier factor at its angle
     center = _named(group, "center", "FLOAT_VECTOR")
     local = vector_math(group, "SUBTRACT", position, center)
-    radius_after = math(group, "MULTIPLY", _named(group, "radius"), output(group_in, "Radius Scale"))
-    rim = math(group, "DIVIDE", output(vector_math(group, "LENGTH", local), "Value"), radius_after)
-    with_rim = _store(group, realized, "rim", rim)
     local_xyz = _xyz(group, local)
     angle = math(group, "ARCTAN2", math(group, "MULTIPLY", output(local_xyz, "Y"), -1.0), output(local_xyz, "X"))
-    factor: Any = 1.0
+    factor: Any = math(group, "MULTIPLY", output(group_in, "Margin"), _named(group, "softness"))
+    factor = math(group, "ADD", factor, 1.0)
     for k in range(2, harmonics + 2):
-        cos_term = math(group, "MULTIPLY", _named(group, f"fourier_a{k}"), math(group, "COSINE", math(group, "MULTIPLY", angle, float(k))))
-        sin_term = math(group, "MULTIPLY", _named(group, f"fourier_b{k}"), math(group, "SINE", math(group, "MULTIPLY", angle, float(k))))
-        term = math(group, "MULTIPLY", math(group, "ADD", cos_term, sin_term), output(group_in, "Irregularity Scale"))
-        factor = math(group, "ADD", factor, term)
+        kt = math(group, "MULTIPLY", angle, float(k))
+        term = math(group, "MULTIPLY", _named(group, f"fourier_a{k}"), math(group, "COSINE", kt))
+        term = math(group, "MULTIPLY_ADD", _named(group, f"fourier_b{k}"), math(group, "SINE", kt), term)
+        factor = math(group, "MULTIPLY_ADD", term, output(group_in, "Irregularity Scale"), factor)
     scaled = add(group, "ShaderNodeVectorMath", operation="SCALE")
     feed(group, scaled, Vector=local, Scale=factor)
     outline = vector_math(group, "ADD", center, scaled)
@@ -195,16 +197,56 @@ def plaques_group(material: bpy.types.Material, harmonics: int) -> bpy.types.Nod
     clipped = add(group, "ShaderNodeVectorMath", operation="SCALE")
     feed(group, clipped, Vector=from_well, Scale=shrink)
     clipped_xyz = _xyz(group, vector_math(group, "ADD", well_center, clipped))
-    height = math(
-        group,
-        "MULTIPLY_ADD",
-        math(group, "ADD", _named(group, "layer"), 1.0),
-        output(group_in, "Layer Step"),
-        output(group_in, "Floor Height"),
-    )
-    final = add(group, "ShaderNodeCombineXYZ")
-    feed(group, final, X=output(clipped_xyz, "X"), Y=output(clipped_xyz, "Y"), Z=height)
-    placed = feed(group, add(group, "GeometryNodeSetPosition"), Geometry=with_rim, Position=final)
+    layer = math(group, "ADD", math(group, "ADD", _named(group, "layer"), output(group_in, "Layer Offset")), 1.0)
+    height = math(group, "MULTIPLY_ADD", layer, output(group_in, "Layer Step"), output(group_in, "Floor Height"))
+    final = feed(group, add(group, "ShaderNodeCombineXYZ"), X=output(clipped_xyz, "X"), Y=output(clipped_xyz, "Y"), Z=height)
+    placed = feed(group, add(group, "GeometryNodeSetPosition"), Geometry=realized, Position=final)
     shaded = feed(group, add(group, "GeometryNodeSetMaterial"), Geometry=placed, Material=material)
     link(group, shaded, group_out)
     return group
+
+
+def strips(name: str, polylines: Sequence[np.ndarray], half_widths: Sequence[float], z: float, attributes: Mapping[str, np.ndarray]) -> bpy.types.Object:
+    """One mesh of flat strips (scratches, specks, pen strokes) along world-xy polylines, each ``2 * half_width``
+    wide with square ends extended by ``half_width``; ``attributes`` hold one value (or vector) per polyline."""
+    vertices: list[np.ndarray] = []
+    faces: list[tuple[int, int, int, int]] = []
+    owner: list[int] = []
+    for index, (line, half) in enumerate(zip(polylines, half_widths)):
+        line = np.asarray(line, dtype=np.float64).reshape(-1, 2)
+        if len(line) == 1:
+            line = np.vstack([line, line + [1e-3, 0.0]])
+        tangents = np.gradient(line, axis=0)
+        tangents /= np.maximum(np.linalg.norm(tangents, axis=1, keepdims=True), 1e-9)
+        line = line.copy()
+        line[0] -= tangents[0] * half
+        line[-1] += tangents[-1] * half
+        normals = np.stack([-tangents[:, 1], tangents[:, 0]], axis=1) * half
+        start = sum(len(v) for v in vertices)
+        vertices.append(np.concatenate([line + normals, line - normals]))
+        n = len(line)
+        faces += [(start + i, start + i + 1, start + n + i + 1, start + n + i) for i in range(n - 1)]
+        owner += [index] * (2 * n)
+    mesh = bpy.data.meshes.new(name)
+    points = np.concatenate(vertices) if vertices else np.zeros((0, 2))
+    mesh.from_pydata([(x, y, z) for x, y in points], [], faces)
+    _set_point_attributes(mesh, {key: np.asarray(values)[owner] for key, values in attributes.items()} if owner else {})
+    obj = bpy.data.objects.new(name, mesh)
+    bpy.context.scene.collection.objects.link(obj)
+    return obj
+
+
+def discs(name: str, centres: np.ndarray, radii: Sequence[float], z: float, attributes: Mapping[str, np.ndarray], segments: int = 32) -> bpy.types.Object:
+    """One mesh of flat discs (blots) at world-xy ``centres``; ``attributes`` hold one value per disc."""
+    angles = np.linspace(0.0, 2 * np.pi, segments, endpoint=False)
+    ring = np.stack([np.cos(angles), np.sin(angles)], axis=1)
+    vertices = [np.asarray(c) + r * ring for c, r in zip(centres, radii)]
+    faces = [tuple(range(i * segments, (i + 1) * segments)) for i in range(len(vertices))]
+    mesh = bpy.data.meshes.new(name)
+    points = np.concatenate(vertices) if vertices else np.zeros((0, 2))
+    mesh.from_pydata([(x, y, z) for x, y in points], [], faces)
+    owner = np.repeat(np.arange(len(vertices)), segments)
+    _set_point_attributes(mesh, {key: np.asarray(values)[owner] for key, values in attributes.items()} if len(owner) else {})
+    obj = bpy.data.objects.new(name, mesh)
+    bpy.context.scene.collection.objects.link(obj)
+    return obj

@@ -11,6 +11,7 @@ left. Per-element values come from point attributes; plate-wide values are named
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from typing import Any
 
 import bpy
@@ -18,23 +19,26 @@ import bpy
 from platesynth.render.blender.inside.nodes import add, feed, link, math, output, vector_math
 
 WELL_ATTRIBUTES = (
-    "density",
-    "unevenness",
-    "unevenness_scale_mm",
-    "centre_gradient",
-    "centre_elongation",
-    "centre_angle_deg",
-    "drying_detail",
-    "rim_clearing_mm",
-    "translucency",
-    "emptied",
-    "lysed",
-    "texture_seed",
+    "well_density",
+    "well_centre_gradient",
+    "well_centre_angle_deg",
+    "well_drying_detail",
+    "well_emptied",
+    "well_lysed",
+    "well_texture_seed",
 )
-"""Float point attributes describing a well's monolayer (also copied onto its plaques)."""
+"""Float point attributes describing a well's monolayer (copied onto its plaques); plus the vectors
+``well_centre_offset`` (the dark centre's offset, plate mm) and ``well_center`` (world mm). Prefixed names:
+Cycles reserves some plain ones (``density`` is the volume density)."""
+
+PLATE_STAIN_INPUTS = ("Unevenness", "Unevenness Scale", "Centre Elongation", "Rim Clearing", "Translucency")
+"""Plate-wide stain parameters: inputs of the stain group, fed by named Value nodes in each material."""
 
 MASK_AOVS = ("well_id", "plaque_id")
 """Shader AOVs of the mask pass: each holds the integer id of the well / plaque seen in the pixel (0: none)."""
+
+_NOISE_SD = {0.0: 0.1217, 2.0: 0.0813, 6.0: 0.0722}
+"""Standard deviation of Blender's Noise Texture factor (mean 0.5) by detail, measured on a large plane."""
 
 
 def _new_material(name: str) -> tuple[bpy.types.Material, bpy.types.NodeTree, bpy.types.Node]:
@@ -62,93 +66,117 @@ def _rgb(tree: bpy.types.NodeTree, name: str, rgb: tuple[float, float, float]) -
     return node.outputs[0]
 
 
-def _noise(tree: bpy.types.NodeTree, vector: Any, scale: Any, w: Any, detail: float = 2.0, roughness: float = 0.5) -> bpy.types.NodeSocket:
+def _unit_noise(tree: bpy.types.NodeTree, vector: Any, cell_mm: Any, w: Any, detail: float = 0.0) -> bpy.types.Node:
+    """Smooth noise with mean 0 and standard deviation 1, blotches about ``cell_mm`` across (like the raster
+    renderer's), a different pattern for each ``w``."""
     node = add(tree, "ShaderNodeTexNoise", noise_dimensions="4D")
-    feed(tree, node, Vector=vector, Scale=scale, W=w, Detail=detail, Roughness=roughness)
-    return output(node, "Factor")
+    scale = math(tree, "DIVIDE", 1.0, math(tree, "MAXIMUM", cell_mm, 1e-3)) if not isinstance(cell_mm, float) else 1.0 / max(cell_mm, 1e-3)
+    feed(tree, node, Vector=vector, Scale=scale, W=w, Detail=detail, Roughness=0.5)
+    return math(tree, "DIVIDE", math(tree, "SUBTRACT", output(node, "Factor"), 0.5), _NOISE_SD[detail])
 
 
-def _signed(tree: bpy.types.NodeTree, noise: Any) -> bpy.types.Node:
-    """Noise in [0, 1] (centred near 0.5) to roughly [-1, 1]."""
-    return math(tree, "MULTIPLY_ADD", noise, 2.0, -1.0)
-
-
-def _smoothstep(tree: bpy.types.NodeTree, value: Any, low: Any, high: Any) -> bpy.types.Node:
+def _smoothstep(tree: bpy.types.NodeTree, value: Any, low: Any, high: Any) -> bpy.types.NodeSocket:
     node = add(tree, "ShaderNodeMapRange", interpolation_type="SMOOTHSTEP")
-    return feed(tree, node, Value=value, From_Min=low, From_Max=high, To_Min=0.0, To_Max=1.0)
+    return output(feed(tree, node, Value=value, From_Min=low, From_Max=high, To_Min=0.0, To_Max=1.0), "Result")
 
 
 def stain_group() -> bpy.types.NodeTree:
     """Shader group ``platesynth.stain``: the monolayer's transmittance at a point of a well.
 
-    Inputs are the offset from the well centre in plate millimetres (x right, y down), the well's radius, the
-    stain colour, the well's stain attributes (see :data:`WELL_ATTRIBUTES`) and ``Clearing``, the fraction of
-    the stain removed (a plaque). Output ``Transmittance``.
+    The density follows the raster renderer's model: the well's density with low-frequency unevenness, an
+    elongated darker centre, a thinner band along the rim and high-frequency drying texture; lysed wells keep
+    fibrous remnants, emptied wells nothing; ``Clearing`` removes a fraction (plaques, scratches) and ``Extra``
+    adds density (specks). Transmittance ``T = t + (1 - t) * stain ** density`` with ``t`` the translucency.
     """
     group = bpy.data.node_groups.new("platesynth.stain", "ShaderNodeTree")
     sockets = [("Offset", "NodeSocketVector"), ("Well Radius", "NodeSocketFloat"), ("Stain Colour", "NodeSocketColor")]
-    sockets += [(name, "NodeSocketFloat") for name in WELL_ATTRIBUTES]
-    sockets += [("Centre Offset", "NodeSocketVector"), ("Clearing", "NodeSocketFloat")]
+    sockets += [(name, "NodeSocketFloat") for name in PLATE_STAIN_INPUTS + WELL_ATTRIBUTES]
+    sockets += [("Centre Offset", "NodeSocketVector"), ("Clearing", "NodeSocketFloat"), ("Extra", "NodeSocketFloat")]
     for name, kind in sockets:
         group.interface.new_socket(name=name, in_out="INPUT", socket_type=kind)
     group.interface.new_socket(name="Transmittance", in_out="OUTPUT", socket_type="NodeSocketColor")
     g_in, g_out = add(group, "NodeGroupInput"), add(group, "NodeGroupOutput")
     inp = {name: output(g_in, name) for name, _ in sockets}
 
-    offset = inp["Offset"]
-    radius = inp["Well Radius"]
-    seed = inp["texture_seed"]
-    # low-frequency unevenness
-    low = _noise(group, offset, math(group, "DIVIDE", 1.0, math(group, "MAXIMUM", inp["unevenness_scale_mm"], 0.1)), seed, 2.0, 0.5)
-    density = math(group, "MULTIPLY", inp["density"], math(group, "MULTIPLY_ADD", _signed(group, low), inp["unevenness"], 1.0))
-    # elongated dark centre: a Gaussian in the rotated, stretched frame around the (offset) centre
-    centred = add(group, "ShaderNodeSeparateXYZ")
-    feed(group, centred, Vector=vector_math(group, "SUBTRACT", offset, inp["Centre Offset"]))
-    angle = math(group, "RADIANS", inp["centre_angle_deg"])
+    offset, radius, seed = inp["Offset"], inp["Well Radius"], inp["well_texture_seed"]
+    low = _unit_noise(group, offset, inp["Unevenness Scale"], seed)
+    density = math(group, "MULTIPLY", inp["well_density"], math(group, "MULTIPLY_ADD", low, inp["Unevenness"], 1.0))
+    # the elongated darker centre: a Gaussian in the rotated, stretched frame around the offset centre
+    centred = feed(group, add(group, "ShaderNodeSeparateXYZ"), Vector=vector_math(group, "SUBTRACT", offset, inp["Centre Offset"]))
+    angle = math(group, "RADIANS", inp["well_centre_angle_deg"])
     cos_a, sin_a = math(group, "COSINE", angle), math(group, "SINE", angle)
-    along = math(group, "ADD", math(group, "MULTIPLY", output(centred, "X"), cos_a), math(group, "MULTIPLY", output(centred, "Y"), sin_a))
-    across = math(group, "SUBTRACT", math(group, "MULTIPLY", output(centred, "Y"), cos_a), math(group, "MULTIPLY", output(centred, "X"), sin_a))
-    along = math(group, "DIVIDE", along, math(group, "MAXIMUM", inp["centre_elongation"], 0.1))
-    spread = math(group, "MULTIPLY", radius, 0.45)
-    squared = math(group, "ADD", math(group, "POWER", math(group, "DIVIDE", along, spread), 2.0), math(group, "POWER", math(group, "DIVIDE", across, spread), 2.0))
-    centre = math(group, "EXPONENT", math(group, "MULTIPLY", squared, -1.0))
-    density = math(group, "MULTIPLY", density, math(group, "MULTIPLY_ADD", centre, inp["centre_gradient"], 1.0))
-    # high-frequency drying detail
-    fine = _noise(group, offset, 2.5, math(group, "ADD", seed, 17.0), 6.0, 0.65)
-    density = math(group, "MULTIPLY", density, math(group, "MULTIPLY_ADD", _signed(group, fine), inp["drying_detail"], 1.0))
-    # paler band along the rim
-    to_rim = math(group, "SUBTRACT", radius, output(vector_math(group, "LENGTH", offset), "Value"))
-    band = _smoothstep(group, to_rim, 0.0, math(group, "MAXIMUM", inp["rim_clearing_mm"], 1e-3))
-    density = math(group, "MULTIPLY", density, math(group, "MULTIPLY_ADD", output(band, "Result"), 0.6, 0.4))
-    # lysed wells keep patches of the layer; emptied wells none; plaques clear a fraction
-    patches = _noise(group, offset, 0.35, math(group, "ADD", seed, 41.0), 3.0, 0.6)
-    lysed_keep = math(group, "MULTIPLY_ADD", inp["lysed"], math(group, "SUBTRACT", math(group, "MULTIPLY", patches, 0.4), 0.95), 1.0)
-    density = math(group, "MULTIPLY", density, math(group, "MAXIMUM", lysed_keep, 0.0))
-    density = math(group, "MULTIPLY", density, math(group, "SUBTRACT", 1.0, inp["emptied"]))
+    cu, cv = output(centred, "X"), output(centred, "Y")
+    along = math(group, "ADD", math(group, "MULTIPLY", cu, cos_a), math(group, "MULTIPLY", cv, sin_a))
+    across = math(group, "SUBTRACT", math(group, "MULTIPLY", cv, cos_a), math(group, "MULTIPLY", cu, sin_a))
+    stretch = math(group, "SQRT", math(group, "MAXIMUM", inp["Centre Elongation"], 0.01))
+    spread = math(group, "MULTIPLY", radius, 0.55)
+    along = math(group, "DIVIDE", along, math(group, "MULTIPLY", spread, stretch))
+    across = math(group, "DIVIDE", math(group, "MULTIPLY", across, stretch), spread)
+    gradient = math(group, "EXPONENT", math(group, "MULTIPLY", math(group, "ADD", math(group, "POWER", along, 2.0), math(group, "POWER", across, 2.0)), -1.0))
+    density = math(group, "MULTIPLY", density, math(group, "MULTIPLY_ADD", gradient, inp["well_centre_gradient"], 1.0))
+    # thinner layer along the rim
+    to_rim = math(group, "MAXIMUM", math(group, "SUBTRACT", radius, output(vector_math(group, "LENGTH", offset), "Value")), 0.0)
+    band = math(group, "EXPONENT", math(group, "DIVIDE", to_rim, math(group, "MULTIPLY", math(group, "MAXIMUM", inp["Rim Clearing"], 1e-4), -1.0)))
+    density = math(group, "MULTIPLY", density, math(group, "MULTIPLY_ADD", band, -0.5, 1.0))
+    # high-frequency drying texture
+    high = _unit_noise(group, offset, 0.06, math(group, "ADD", seed, 17.0))
+    density = math(group, "MULTIPLY", density, math(group, "MAXIMUM", math(group, "MULTIPLY_ADD", math(group, "MULTIPLY", high, 2.0), inp["well_drying_detail"], 1.0), 0.0))
+    # lysed wells keep fibrous remnants of the layer
+    fibres = _unit_noise(group, offset, 0.5, math(group, "ADD", seed, 41.0))
+    remnant = math(group, "MULTIPLY_ADD", fibres, 0.35, math(group, "MULTIPLY_ADD", gradient, 0.5, math(group, "MULTIPLY_ADD", high, 0.3, 0.15)))
+    remnant = math(group, "MULTIPLY", math(group, "MINIMUM", math(group, "MAXIMUM", remnant, 0.0), 1.0), 0.45)
+    keep = math(group, "MULTIPLY_ADD", inp["well_lysed"], math(group, "SUBTRACT", remnant, 1.0), 1.0)
+    density = math(group, "MULTIPLY", density, keep)
+    density = math(group, "MULTIPLY", density, math(group, "SUBTRACT", 1.0, inp["well_emptied"]))
     density = math(group, "MULTIPLY", density, math(group, "SUBTRACT", 1.0, inp["Clearing"]))
-    density = math(group, "MAXIMUM", density, 0.0)
+    density = math(group, "MAXIMUM", math(group, "ADD", density, inp["Extra"]), 0.0)
 
     channels = feed(group, add(group, "ShaderNodeSeparateColor"), Color=inp["Stain Colour"])
     combined = add(group, "ShaderNodeCombineColor")
-    opaque = math(group, "SUBTRACT", 1.0, inp["translucency"])
+    opaque = math(group, "SUBTRACT", 1.0, inp["Translucency"])
     for channel in ("Red", "Green", "Blue"):
-        absorbed = math(group, "POWER", math(group, "MAXIMUM", output(channels, channel), 1e-4), density)
-        feed(group, combined, **{channel: math(group, "MULTIPLY_ADD", absorbed, opaque, inp["translucency"])})
+        absorbed = math(group, "POWER", math(group, "MAXIMUM", output(channels, channel), 1e-3), density)
+        feed(group, combined, **{channel: math(group, "MULTIPLY_ADD", absorbed, opaque, inp["Translucency"])})
     link(group, combined, g_out.inputs["Transmittance"])
     return group
 
 
-def _stain_node(tree: bpy.types.NodeTree, group: bpy.types.NodeTree, stain_colour: Any, well_radius: Any, clearing: Any = 0.0) -> bpy.types.Node:
-    """The stain group fed from the geometry's attributes (wells and plaques carry the same ones)."""
-    node = add(tree, "ShaderNodeGroup")
-    node.node_tree = group
+class StainInputs:
+    """The plate-wide stain values every stain-using material exposes as named nodes."""
+
+    def __init__(self, stain_linear_rgb: tuple[float, float, float], well_radius: float, plate_stain: Mapping[str, float]) -> None:
+        self.stain_linear_rgb = stain_linear_rgb
+        self.well_radius = well_radius
+        self.values = {
+            "Unevenness": float(plate_stain["unevenness"]),
+            "Unevenness Scale": float(plate_stain["unevenness_scale_mm"]),
+            "Centre Elongation": float(plate_stain["centre_elongation"]),
+            "Rim Clearing": float(plate_stain["rim_clearing_mm"]),
+            "Translucency": float(plate_stain["translucency"]),
+        }
+
+    def sockets(self, tree: bpy.types.NodeTree) -> dict[str, bpy.types.NodeSocket]:
+        sockets = {name: _value(tree, name, value) for name, value in self.values.items()}
+        sockets["Stain Colour"] = _rgb(tree, "Stain Colour", self.stain_linear_rgb)
+        sockets["Well Radius"] = _value(tree, "Well Radius", self.well_radius)
+        return sockets
+
+
+def _plate_offset(tree: bpy.types.NodeTree) -> bpy.types.Node:
+    """The shading point's offset from its well's centre in plate millimetres (x right, y down)."""
     coordinates = add(tree, "ShaderNodeTexCoord")
     world_offset = vector_math(tree, "SUBTRACT", output(coordinates, "Object"), _attribute(tree, "well_center", "Vector"))
     flip = add(tree, "ShaderNodeVectorMath", operation="MULTIPLY")
-    feed(tree, flip, Vector=world_offset, Vector_1=(1.0, -1.0, 0.0))  # world y up -> plate y down
-    inputs: dict[str, Any] = {"Offset": flip, "Well Radius": well_radius, "Stain Colour": stain_colour, "Clearing": clearing}
+    return feed(tree, flip, Vector=world_offset, Vector_1=(1.0, -1.0, 0.0))
+
+
+def _stain_node(tree: bpy.types.NodeTree, group: bpy.types.NodeTree, shared: Mapping[str, Any], offset: Any, clearing: Any = 0.0, extra: Any = 0.0) -> bpy.types.Node:
+    """The stain group fed from the geometry's attributes (wells and plaques carry the same ones)."""
+    node = add(tree, "ShaderNodeGroup")
+    node.node_tree = group
+    inputs: dict[str, Any] = dict(shared) | {"Offset": offset, "Clearing": clearing, "Extra": extra}
     inputs |= {name: _attribute(tree, name) for name in WELL_ATTRIBUTES}
-    inputs["Centre Offset"] = _attribute(tree, "centre_offset", "Vector")
+    inputs["Centre Offset"] = _attribute(tree, "well_centre_offset", "Vector")
     for key, value in inputs.items():
         target = node.inputs[key]
         if isinstance(value, (bpy.types.Node, bpy.types.NodeSocket)):
@@ -158,98 +186,120 @@ def _stain_node(tree: bpy.types.NodeTree, group: bpy.types.NodeTree, stain_colou
     return node
 
 
-def monolayer_material(group: bpy.types.NodeTree, stain_rgb: tuple[float, float, float], well_radius: float) -> bpy.types.Material:
+def monolayer_material(group: bpy.types.NodeTree, stain: StainInputs) -> bpy.types.Material:
     """The stained cell layer on each well floor (a thin absorbing film)."""
     material, tree, out = _new_material("platesynth.monolayer")
-    stain = _stain_node(tree, group, _rgb(tree, "Stain Colour", stain_rgb), _value(tree, "Well Radius", well_radius))
-    film = feed(tree, add(tree, "ShaderNodeBsdfTransparent"), Color=stain)
-    link(tree, film, out)
+    transmittance = _stain_node(tree, group, stain.sockets(tree), _plate_offset(tree))
+    link(tree, feed(tree, add(tree, "ShaderNodeBsdfTransparent"), Color=transmittance), out)
     return material
 
 
-def plaque_material(
-    group: bpy.types.NodeTree, stain_rgb: tuple[float, float, float], well_radius: float, first_depth: int
-) -> bpy.types.Material:
-    """A plaque: the stain cleared by ``clearness``, fading out over ``softness`` towards the (noisy) rim.
+def _outline_distance(tree: bpy.types.NodeTree, harmonics: int) -> bpy.types.NodeSocket:
+    """Signed distance (mm, negative inside) from the shading point to its plaque's Fourier outline."""
+    coordinates = add(tree, "ShaderNodeTexCoord")
+    local = vector_math(tree, "SUBTRACT", output(coordinates, "Object"), _attribute(tree, "center", "Vector"))
+    xy = feed(tree, add(tree, "ShaderNodeSeparateXYZ"), Vector=local)
+    du, dv = output(xy, "X"), math(tree, "MULTIPLY", output(xy, "Y"), -1.0)  # plate y points down
+    dist = math(tree, "SQRT", math(tree, "ADD", math(tree, "MULTIPLY", du, du), math(tree, "MULTIPLY", dv, dv)))
+    angle = math(tree, "ARCTAN2", dv, du)
+    outline: Any = 1.0
+    for k in range(2, harmonics + 2):
+        kt = math(tree, "MULTIPLY", angle, float(k))
+        term = math(tree, "MULTIPLY", _attribute(tree, f"fourier_a{k}"), math(tree, "COSINE", kt))
+        term = math(tree, "MULTIPLY_ADD", _attribute(tree, f"fourier_b{k}"), math(tree, "SINE", kt), term)
+        outline = math(tree, "ADD", outline, term)
+    return output(math(tree, "SUBTRACT", dist, math(tree, "MULTIPLY", _attribute(tree, "radius"), outline)), "Value")
 
-    Only the plaque nearest the camera clears (``Transparent Depth == First Plaque Depth``); plaques it covers
-    pass light unchanged, as the stain is removed only once.
+
+def plaque_material(group: bpy.types.NodeTree, stain: StainInputs, harmonics: int, first_depth: int) -> bpy.types.Material:
+    """A plaque: the stain cleared by ``clearness`` with a smooth edge ``softness * radius`` wide centred on the
+    outline, and a residual of stain left inside (as the raster renderer draws it).
+
+    The light passing a plaque and then the monolayer must see the cleared stain, so the plaque's Transparent
+    colour is the ratio of the cleared to the intact transmittance. Only the plaque surface nearest the camera
+    clears (``Transparent Depth == First Plaque Depth``), so stacked plaques clear once.
     """
     material, tree, out = _new_material("platesynth.plaque")
-    rim = _attribute(tree, "rim")
-    coordinates = add(tree, "ShaderNodeTexCoord")
-    wobble = _noise(tree, output(coordinates, "Object"), 3.0, _attribute(tree, "plaque_id"), 3.0, 0.6)
-    noisy_rim = math(tree, "MULTIPLY", rim, math(tree, "MULTIPLY_ADD", _signed(tree, wobble), 0.12, 1.0))
-    softness = math(tree, "MAXIMUM", _attribute(tree, "softness"), 0.02)
-    edge = _smoothstep(tree, noisy_rim, math(tree, "SUBTRACT", 1.0, softness), 1.0)
-    clearing = math(tree, "MULTIPLY", _attribute(tree, "clearness"), math(tree, "SUBTRACT", 1.0, output(edge, "Result")))
+    signed = _outline_distance(tree, harmonics)
+    width = math(tree, "MAXIMUM", math(tree, "MULTIPLY", _attribute(tree, "softness"), _attribute(tree, "radius")), 0.01)
+    edge = _smoothstep(tree, math(tree, "SUBTRACT", 0.5, math(tree, "DIVIDE", signed, math(tree, "MULTIPLY", width, 2.0))), 0.0, 1.0)
+    offset = _plate_offset(tree)
+    residual_noise = _unit_noise(tree, offset, 0.12, math(tree, "ADD", _attribute(tree, "well_texture_seed"), 71.0))
+    residual = math(tree, "MINIMUM", math(tree, "MAXIMUM", math(tree, "MULTIPLY_ADD", residual_noise, 0.25, 0.12), 0.0), 0.6)
+    clearing = math(tree, "MULTIPLY", math(tree, "MULTIPLY", _attribute(tree, "clearness"), edge), math(tree, "SUBTRACT", 1.0, residual))
     path = add(tree, "ShaderNodeLightPath")
     topmost = math(tree, "COMPARE", output(path, "Transparent Depth"), _value(tree, "First Plaque Depth", float(first_depth)), 0.5)
     clearing = math(tree, "MULTIPLY", clearing, topmost)
-    stain_colour = _rgb(tree, "Stain Colour", stain_rgb)
-    well_radius_socket = _value(tree, "Well Radius", well_radius)
-    cleared = _stain_node(tree, group, stain_colour, well_radius_socket, clearing)
-    intact = _stain_node(tree, group, stain_colour, well_radius_socket, 0.0)
-    ratio = add(tree, "ShaderNodeMix", data_type="RGBA", blend_type="DIVIDE")
-    feed(tree, ratio, Factor=1.0, A=cleared, B=intact)
-    film = feed(tree, add(tree, "ShaderNodeBsdfTransparent"), Color=output(ratio, "Result"))
-    link(tree, film, out)
+    shared = stain.sockets(tree)
+    ratio = add(tree, "ShaderNodeMix", data_type="RGBA", blend_type="DIVIDE", clamp_result=False)
+    feed(tree, ratio, Factor=1.0, A=_stain_node(tree, group, shared, offset, clearing), B=_stain_node(tree, group, shared, offset))
+    link(tree, feed(tree, add(tree, "ShaderNodeBsdfTransparent"), Color=output(ratio, "Result")), out)
     return material
 
 
-def plastic_material(tint_rgb: tuple[float, float, float], transmittance: float, rim_darkness: float) -> bpy.types.Material:
-    """The plate's polystyrene: tinted see-through plastic whose grazing faces (the walls' outlines) look dark."""
-    material, tree, out = _new_material("platesynth.plastic")
-    tint = _rgb(tree, "Plastic Tint", tint_rgb)
-    through = add(tree, "ShaderNodeMix", data_type="RGBA", blend_type="MULTIPLY")
-    feed(tree, through, Factor=1.0, A=tint, B=(1.0, 1.0, 1.0, 1.0))
-    clear = add(tree, "ShaderNodeBsdfTransparent")
-    scaled = add(tree, "ShaderNodeVectorMath", operation="SCALE")
-    feed(tree, scaled, Vector=output(through, "Result"), Scale=_value(tree, "Plastic Transmittance", transmittance))
-    link(tree, output(scaled, "Vector"), clear.inputs["Color"])
-    gloss = feed(tree, add(tree, "ShaderNodeBsdfGlossy"), Color=(1.0, 1.0, 1.0, 1.0), Roughness=0.15)
-    dark = feed(tree, add(tree, "ShaderNodeBsdfDiffuse"), Color=(0.05, 0.05, 0.06, 1.0))
-    facing = add(tree, "ShaderNodeLayerWeight")
-    feed(tree, facing, Blend=0.3)
-    outline = math(tree, "MULTIPLY", math(tree, "POWER", output(facing, "Facing"), 3.0), _value(tree, "Rim Darkness", rim_darkness))
-    glossy_mix = feed(tree, add(tree, "ShaderNodeMixShader"), Fac=math(tree, "MULTIPLY", output(facing, "Fresnel"), 0.5), Shader=clear, Shader_1=gloss)
-    mix = feed(tree, add(tree, "ShaderNodeMixShader"), Fac=outline, Shader=glossy_mix, Shader_1=dark)
-    link(tree, mix, out)
+def marks_material(group: bpy.types.NodeTree, stain: StainInputs) -> bpy.types.Material:
+    """Scratches and specks on the monolayer: each mark's ``mark_clearing`` (stain scraped off) and ``mark_extra``
+    (density added) attributes change the stain of the well under it."""
+    material, tree, out = _new_material("platesynth.marks")
+    offset = _plate_offset(tree)
+    shared = stain.sockets(tree)
+    ratio = add(tree, "ShaderNodeMix", data_type="RGBA", blend_type="DIVIDE", clamp_result=False)
+    changed = _stain_node(tree, group, shared, offset, _attribute(tree, "mark_clearing"), _attribute(tree, "mark_extra"))
+    feed(tree, ratio, Factor=1.0, A=changed, B=_stain_node(tree, group, shared, offset))
+    link(tree, feed(tree, add(tree, "ShaderNodeBsdfTransparent"), Color=output(ratio, "Result")), out)
     return material
 
 
-def emission_material(name: str, rgb: tuple[float, float, float], strength: float) -> bpy.types.Material:
-    """A light-emitting surface (the light box's panel)."""
+def plastic_material(name: str, tint_rgb: tuple[float, float, float], transmittance: float, rim_darkness: float) -> bpy.types.Material:
+    """Polystyrene: tinted see-through plastic whose grazing faces (the walls seen edge-on) look dark."""
     material, tree, out = _new_material(name)
-    emit = add(tree, "ShaderNodeEmission")
-    link(tree, _rgb(tree, "Light Colour", rgb), emit.inputs["Color"])
-    link(tree, _value(tree, "Light Strength", strength), emit.inputs["Strength"])
-    link(tree, emit, out)
+    colour = add(tree, "ShaderNodeVectorMath", operation="SCALE")
+    feed(tree, colour, Vector=_rgb(tree, "Plastic Tint", tint_rgb), Scale=_value(tree, "Plastic Transmittance", transmittance))
+    clear = feed(tree, add(tree, "ShaderNodeBsdfTransparent"), Color=output(colour, "Vector"))
+    dark = feed(tree, add(tree, "ShaderNodeBsdfDiffuse"), Color=(0.02, 0.02, 0.025, 1.0))
+    facing = feed(tree, add(tree, "ShaderNodeLayerWeight"), Blend=0.5)
+    outline = math(tree, "MULTIPLY", math(tree, "POWER", output(facing, "Facing"), 4.0), _value(tree, "Rim Darkness", rim_darkness))
+    link(tree, feed(tree, add(tree, "ShaderNodeMixShader"), Fac=outline, Shader=clear, Shader_1=dark), out)
     return material
 
 
-def surface_material(name: str, rgb: tuple[float, float, float], texture: float, seed: float, roughness: float = 0.8) -> bpy.types.Material:
-    """A matte surface (desk, light-box frame, ruler) with a faint noise texture."""
+def glow_material(name: str, rgb: tuple[float, float, float], strength: float, texture: float = 0.0, seed: float = 0.0) -> bpy.types.Material:
+    """A self-lit surface: the light box's panel (``strength`` = its brightness), its frame, a desk; with
+    low-frequency texture of amplitude ``texture`` (8 mm blotches)."""
     material, tree, out = _new_material(name)
     coordinates = add(tree, "ShaderNodeTexCoord")
-    grain = _noise(tree, output(coordinates, "Object"), 0.15, seed, 8.0, 0.6)
-    gain = math(tree, "MULTIPLY_ADD", _signed(tree, grain), _value(tree, "Texture", texture), 1.0)
-    colour = add(tree, "ShaderNodeVectorMath", operation="SCALE")
-    feed(tree, colour, Vector=_rgb(tree, "Colour", rgb), Scale=gain)
-    bsdf = feed(tree, add(tree, "ShaderNodeBsdfPrincipled"), Roughness=roughness)
-    link(tree, output(colour, "Vector"), bsdf.inputs["Base Color"])
-    link(tree, bsdf, out)
+    grain = _unit_noise(tree, output(coordinates, "Object"), 8.0, seed)
+    gain = math(tree, "MAXIMUM", math(tree, "MULTIPLY_ADD", grain, _value(tree, "Texture", texture), 1.0), 0.0)
+    emit = feed(tree, add(tree, "ShaderNodeEmission"), Color=_rgb(tree, "Colour", rgb))
+    link(tree, math(tree, "MULTIPLY", gain, _value(tree, "Strength", strength)), emit.inputs["Strength"])
+    link(tree, emit, out)
+    material.cycles.emission_sampling = "NONE"  # seen directly only: it lights nothing (no diffuse bounces either)
     return material
 
 
-def ink_material(name: str, rgb: tuple[float, float, float], opacity: float) -> bpy.types.Material:
-    """Marker ink, stains: a coloured film that absorbs (and slightly scatters) light."""
-    material, tree, out = _new_material(name)
-    film = add(tree, "ShaderNodeBsdfTransparent")
-    link(tree, _rgb(tree, "Colour", rgb), film.inputs["Color"])
-    diffuse = feed(tree, add(tree, "ShaderNodeBsdfDiffuse"), Color=(*rgb, 1.0))
-    mix = feed(tree, add(tree, "ShaderNodeMixShader"), Fac=1.0 - opacity, Shader=diffuse, Shader_1=film)
-    link(tree, mix, out)
+def ruler_material() -> bpy.types.Material:
+    """A dark ruler with light tick marks every mm (longer every 5 and 10 mm); its UV map holds (along, across)
+    in mm from the ruler's inner corner."""
+    material, tree, out = _new_material("platesynth.ruler")
+    uv = feed(tree, add(tree, "ShaderNodeSeparateXYZ"), Vector=output(add(tree, "ShaderNodeTexCoord"), "UV"))
+    along, across = math(tree, "ABSOLUTE", output(uv, "X")), output(uv, "Y")
+    nearest = math(tree, "ROUND", along)
+    tenth = math(tree, "COMPARE", math(tree, "FLOORED_MODULO", nearest, 10.0), 0.0, 0.01)
+    fifth = math(tree, "COMPARE", math(tree, "FLOORED_MODULO", nearest, 5.0), 0.0, 0.01)
+    length = math(tree, "ADD", 3.0, math(tree, "ADD", math(tree, "MULTIPLY", fifth, 2.0), math(tree, "MULTIPLY", tenth, 2.0)))
+    on_tick = math(tree, "LESS_THAN", math(tree, "ABSOLUTE", math(tree, "SUBTRACT", along, nearest)), 0.12)
+    tick = math(tree, "MULTIPLY", on_tick, math(tree, "LESS_THAN", across, length))
+    emit = add(tree, "ShaderNodeEmission")
+    link(tree, math(tree, "MULTIPLY_ADD", tick, 0.6, 0.02), emit.inputs["Strength"])
+    link(tree, emit, out)
+    material.cycles.emission_sampling = "NONE"
+    return material
+
+
+def ink_material() -> bpy.types.Material:
+    """Marker ink and blots on the plastic: a film multiplying the light by its ``ink`` attribute (linear RGB)."""
+    material, tree, out = _new_material("platesynth.ink")
+    link(tree, feed(tree, add(tree, "ShaderNodeBsdfTransparent"), Color=_attribute(tree, "ink", "Color")), out)
     return material
 
 
@@ -259,5 +309,7 @@ def mask_material() -> bpy.types.Material:
     for name in MASK_AOVS:
         aov = add(tree, "ShaderNodeOutputAOV", aov_name=name)
         link(tree, math(tree, "ROUND", _attribute(tree, name)), aov.inputs["Value"])
-    link(tree, feed(tree, add(tree, "ShaderNodeEmission"), Strength=0.0), out)
+    # a holdout ends the camera path at the first surface (a zero emission would let it pass on, and the
+    # AOVs of the surfaces behind would add up)
+    link(tree, add(tree, "ShaderNodeHoldout"), out)
     return material

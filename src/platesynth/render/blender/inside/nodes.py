@@ -81,6 +81,6 @@ def vector_math(tree: bpy.types.NodeTree, operation: str, a: Any, b: Any = None)
     return node
 
 
-def output(node: bpy.types.Node, name: str) -> bpy.types.NodeSocket:
-    """The enabled output socket ``name`` of ``node``."""
+def output(node: bpy.types.Node, name: str | int) -> bpy.types.NodeSocket:
+    """The enabled output socket ``name`` (or the ``name``-th enabled one) of ``node``."""
     return socket(node.outputs, name)

@@ -1,83 +1,85 @@
-"""The plate's plastic body (deck with well holes, walls, outer wall) and its bottom sheet, as geometry nodes."""
+"""The plate's plastic as geometry nodes: the body (deck with well holes, tapered well walls, outer wall) and
+the bottom sheet under the well floors.
+
+Heights are in the world frame: well floors at ``z = 0``, the bottom sheet at ``z = -Floor Thickness``, the
+walls' top edge at ``z = Well Depth`` with inner radius ``Well Radius + Taper`` (as the raster renderer draws it).
+"""
 
 from __future__ import annotations
 
+from typing import Any
+
 import bpy
 
-from platesynth.render.blender.inside.geometry import FLOOR_MM, _new_group
+from platesynth.render.blender.inside.geometry import new_group
 from platesynth.render.blender.inside.nodes import add, feed, link, math, output
 
-_PLATE_INPUTS = [
+PLATE_INPUTS = [
     ("Length", "NodeSocketFloat", 127.76),
     ("Width", "NodeSocketFloat", 85.48),
     ("Height", "NodeSocketFloat", 20.0),
     ("Corner Radius", "NodeSocketFloat", 3.0),
     ("Well Radius", "NodeSocketFloat", 11.0),
+    ("Taper", "NodeSocketFloat", 0.3),
     ("Wall", "NodeSocketFloat", 1.3),
-    ("Floor Height", "NodeSocketFloat", FLOOR_MM),
+    ("Well Depth", "NodeSocketFloat", 17.5),
+    ("Floor Thickness", "NodeSocketFloat", 1.0),
     ("Deck Thickness", "NodeSocketFloat", 1.5),
     ("Segments", "NodeSocketInt", 128),
 ]
+"""The plate groups' modifier inputs: name, socket type, default (mm)."""
 
 
 def _outline(group: bpy.types.NodeTree, group_in: bpy.types.Node) -> bpy.types.Node:
-    """The plate's footprint: a rounded rectangle from (0, 0) to (Length, -Width) in the world's xy plane."""
+    """The plate's footprint: a rounded rectangle from (0, 0) to (Length, -Width) in the xy plane."""
     rectangle = add(group, "GeometryNodeCurvePrimitiveQuadrilateral", mode="RECTANGLE")
     feed(group, rectangle, Width=output(group_in, "Length"), Height=output(group_in, "Width"))
     fillet = add(group, "GeometryNodeFilletCurve")
     feed(group, fillet, Curve=rectangle, Radius=output(group_in, "Corner Radius"), Mode="Poly", Count=6)
-    shift = add(group, "ShaderNodeCombineXYZ")
-    feed(group, shift, X=math(group, "MULTIPLY", output(group_in, "Length"), 0.5), Y=math(group, "MULTIPLY", output(group_in, "Width"), -0.5))
-    return feed(group, add(group, "GeometryNodeTransform"), Geometry=fillet, Translation=shift)
+    return _moved(group, fillet, math(group, "MULTIPLY", output(group_in, "Length"), 0.5), math(group, "MULTIPLY", output(group_in, "Width"), -0.5), 0.0)
 
 
-def _extrude(group: bpy.types.NodeTree, mesh: bpy.types.Node, height: object) -> bpy.types.Node:
-    up = add(group, "ShaderNodeCombineXYZ")
-    feed(group, up, Z=height)
-    return feed(group, add(group, "GeometryNodeExtrudeMesh"), Mesh=mesh, Offset=up, Offset_Scale=1.0)
+def _moved(group: bpy.types.NodeTree, geometry: Any, x: Any, y: Any, z: Any) -> bpy.types.Node:
+    offset = feed(group, add(group, "ShaderNodeCombineXYZ"), X=x, Y=y, Z=z)
+    return feed(group, add(group, "GeometryNodeTransform"), Geometry=geometry, Translation=offset)
+
+
+def _on_points(group: bpy.types.NodeTree, points: Any, instance: Any) -> bpy.types.Node:
+    instances = feed(group, add(group, "GeometryNodeInstanceOnPoints"), Points=points, Instance=instance)
+    return feed(group, add(group, "GeometryNodeRealizeInstances"), Geometry=instances)
 
 
 def plate_group(material: bpy.types.Material) -> bpy.types.NodeTree:
-    """Geometry nodes making the plate body from the well-centre points: a deck with one hole per well on top,
-    a tube-shaped wall around each well and the plate's outer wall. Inputs are the plate's dimensions (mm)."""
-    group, group_in, group_out = _new_group("platesynth.plate", _PLATE_INPUTS)
+    """Geometry nodes making the plate body from the well-centre points (see :data:`PLATE_INPUTS`)."""
+    group, group_in, group_out = new_group("platesynth.plate", PLATE_INPUTS)
     points = output(group_in, "Geometry")
     outline = _outline(group, group_in)
-    height = output(group_in, "Height")
-    deck_thickness = output(group_in, "Deck Thickness")
+    depth = output(group_in, "Well Depth")
+    top_radius = math(group, "ADD", output(group_in, "Well Radius"), output(group_in, "Taper"))
 
+    # the deck: the footprint with one hole per well at the walls' top edge
     hole = add(group, "GeometryNodeCurvePrimitiveCircle", mode="RADIUS")
-    outer_radius = math(group, "ADD", output(group_in, "Well Radius"), output(group_in, "Wall"))
-    feed(group, hole, Resolution=output(group_in, "Segments"), Radius=outer_radius)
-    holes = feed(group, add(group, "GeometryNodeRealizeInstances"), Geometry=feed(group, add(group, "GeometryNodeInstanceOnPoints"), Points=points, Instance=hole))
+    feed(group, hole, Resolution=output(group_in, "Segments"), Radius=top_radius)
     deck_curves = add(group, "GeometryNodeJoinGeometry")
     link(group, outline, deck_curves)
-    link(group, holes, deck_curves)
+    link(group, _on_points(group, points, hole), deck_curves)
     deck = feed(group, add(group, "GeometryNodeFillCurve"), Curve=deck_curves, Mode="N-gons")
-    deck = _extrude(group, deck, deck_thickness)
-    deck_lift = add(group, "ShaderNodeCombineXYZ")
-    feed(group, deck_lift, Z=math(group, "SUBTRACT", height, deck_thickness))
-    deck = feed(group, add(group, "GeometryNodeTransform"), Geometry=output(deck, "Mesh"), Translation=deck_lift)
+    up = feed(group, add(group, "ShaderNodeCombineXYZ"), Z=output(group_in, "Deck Thickness"))
+    deck = feed(group, add(group, "GeometryNodeExtrudeMesh"), Mesh=deck, Offset=up, Offset_Scale=1.0)
+    deck = _moved(group, output(deck, "Mesh"), 0.0, 0.0, math(group, "SUBTRACT", depth, output(group_in, "Deck Thickness")))
 
-    # each well's wall: a tube from the floor to the top, its inner face at the well radius
-    wall_path = add(group, "GeometryNodeCurvePrimitiveCircle", mode="RADIUS")
-    feed(group, wall_path, Resolution=output(group_in, "Segments"), Radius=math(group, "ADD", output(group_in, "Well Radius"), math(group, "MULTIPLY", output(group_in, "Wall"), 0.5)))
-    wall_height = math(group, "SUBTRACT", height, output(group_in, "Floor Height"))
-    profile = add(group, "GeometryNodeCurvePrimitiveQuadrilateral", mode="RECTANGLE")
-    feed(group, profile, Width=output(group_in, "Wall"), Height=wall_height)
-    tube = feed(group, add(group, "GeometryNodeCurveToMesh"), Curve=wall_path, Profile_Curve=profile, Fill_Caps=True)
-    tube_lift = add(group, "ShaderNodeCombineXYZ")
-    feed(group, tube_lift, Z=math(group, "MULTIPLY_ADD", wall_height, 0.5, output(group_in, "Floor Height")))
-    tube = feed(group, add(group, "GeometryNodeTransform"), Geometry=tube, Translation=tube_lift)
-    walls = feed(group, add(group, "GeometryNodeRealizeInstances"), Geometry=feed(group, add(group, "GeometryNodeInstanceOnPoints"), Points=points, Instance=tube))
+    # the wells' walls: open cones from the floor's radius up to the top edge's
+    wall = add(group, "GeometryNodeMeshCone", fill_type="NONE")
+    feed(group, wall, Vertices=output(group_in, "Segments"), Radius_Top=top_radius, Radius_Bottom=output(group_in, "Well Radius"), Depth=depth)
+    wall = _moved(group, output(wall, "Mesh"), 0.0, 0.0, math(group, "MULTIPLY", depth, 0.5))
+    walls = _on_points(group, points, wall)
 
-    # the outer wall along the footprint
+    # the outer wall along the footprint, from the bottom sheet to the plate's full height
     side_profile = add(group, "GeometryNodeCurvePrimitiveQuadrilateral", mode="RECTANGLE")
-    feed(group, side_profile, Width=1.2, Height=height)
+    feed(group, side_profile, Width=1.2, Height=output(group_in, "Height"))
     side = feed(group, add(group, "GeometryNodeCurveToMesh"), Curve=outline, Profile_Curve=side_profile, Fill_Caps=True)
-    side_lift = add(group, "ShaderNodeCombineXYZ")
-    feed(group, side_lift, Z=math(group, "MULTIPLY", height, 0.5))
-    side = feed(group, add(group, "GeometryNodeTransform"), Geometry=side, Translation=side_lift)
+    side_z = math(group, "SUBTRACT", math(group, "MULTIPLY", output(group_in, "Height"), 0.5), output(group_in, "Floor Thickness"))
+    side = _moved(group, side, 0.0, 0.0, side_z)
 
     body = add(group, "GeometryNodeJoinGeometry")
     for part in (deck, walls, side):
@@ -87,8 +89,9 @@ def plate_group(material: bpy.types.Material) -> bpy.types.NodeTree:
 
 
 def plate_bottom_group(material: bpy.types.Material) -> bpy.types.NodeTree:
-    """Geometry nodes making the plate's bottom: one flat sheet over the whole footprint at z = 0."""
-    group, group_in, group_out = _new_group("platesynth.plate_bottom", _PLATE_INPUTS)
+    """Geometry nodes making the plate's bottom: one flat sheet over the footprint under the well floors."""
+    group, group_in, group_out = new_group("platesynth.plate_bottom", PLATE_INPUTS)
     sheet = feed(group, add(group, "GeometryNodeFillCurve"), Curve=_outline(group, group_in), Mode="N-gons")
+    sheet = _moved(group, sheet, 0.0, 0.0, math(group, "MULTIPLY", output(group_in, "Floor Thickness"), -1.0))
     link(group, feed(group, add(group, "GeometryNodeSetMaterial"), Geometry=sheet, Material=material), group_out)
     return group

@@ -1,15 +1,18 @@
-"""Build the whole Blender scene from a scene description: plate, wells, plaques, artifacts, background, light,
-camera and view-layer AOVs.
+"""Build the whole Blender scene from a scene description: plate, wells, plaques, artifacts, light box or desk,
+camera and the view layer's AOVs.
 
-The description is ``{"scene": <Scene as JSON>, "view": {...}}`` (see
-:func:`platesynth.render.blender.describe.describe_scene`). Objects are tagged with the custom property
-``platesynth_pass``: ``"both"`` (drawn in the image and the mask pass), ``"image"`` (image only: lights,
-background, artifacts, the plate's bottom sheet) or ``"mask"``.
+The description is ``{"scene": <Scene as JSON>, "view": {...}}`` (made on the host by
+:func:`platesynth.render.blender.describe.describe_scene`). The world frame is the plate frame ``(x, -y, z)``
+in millimetres with the well floors at ``z = 0``. Everything is seen by transmission: the light box (or desk)
+glows, and the plastic, the stained monolayer, the plaques, scratches, specks and ink are thin films that
+multiply the light passing them, stacked along the camera's axis.
+
+Objects carry the custom property ``platesynth_pass``: ``"both"`` (image and mask pass), ``"image"`` (image
+pass only) or ``"mask"``; :func:`show_pass` hides the others.
 """
 
 from __future__ import annotations
 
-import math
 from collections.abc import Mapping, Sequence
 from typing import Any
 
@@ -18,13 +21,15 @@ import numpy as np
 from mathutils import Matrix
 
 from platesynth.render.blender.inside import geometry, materials, plate
-from platesynth.render.blender.inside.geometry import FLOOR_MM
 
 PASS_PROPERTY = "platesynth_pass"
+PLAQUE_LAYER_STEP_MM = 1e-4
+"""Distance between stacked plaque discs: small enough to add no visible parallax."""
+RULER_WIDTH_MM = 22.0
 
 
 def reset() -> None:
-    """Start from an empty file (keeps the process warm: no restart between images)."""
+    """Start from an empty file (the process stays warm: no restart between images)."""
     bpy.ops.wm.read_factory_settings(use_empty=True)
 
 
@@ -33,198 +38,244 @@ def _tag(obj: bpy.types.Object, which: str) -> bpy.types.Object:
     return obj
 
 
-def _stain_rgb(stain: Mapping[str, float]) -> tuple[float, float, float]:
-    import colorsys
-
-    return colorsys.hsv_to_rgb((stain["hue_deg"] % 360.0) / 360.0, stain["saturation"], stain["value"])
-
-
 def _world_xy(points_mm: Sequence[Sequence[float]]) -> np.ndarray:
-    """Plate millimetres (x right, y down) to the plate's local frame (x right, y up)."""
+    """Plate millimetres (x right, y down) to world xy (y up)."""
     points = np.asarray(points_mm, dtype=np.float64).reshape(-1, 2)
     return np.stack([points[:, 0], -points[:, 1]], axis=1)
 
 
-def _with_z(xy: np.ndarray, z: float | np.ndarray) -> np.ndarray:
-    return np.column_stack([xy, np.broadcast_to(z, (len(xy),))])
+def _with_z(xy: np.ndarray, z: float) -> np.ndarray:
+    return np.column_stack([xy, np.full(len(xy), z)])
 
 
-def build(description: Mapping[str, Any]) -> dict[str, Any]:
-    """Create every object of the scene in the current (empty) Blender file.
+def build(description: Mapping[str, Any]) -> dict[str, bpy.types.Object]:
+    """Create every object of the scene in the current (empty) Blender file; return the main ones by name."""
+    scene_data, view = description["scene"], description["view"]
+    plate_data = scene_data["plate"]
+    well_radius = float(plate_data["well_radius_mm"])
+    toward_camera = float(view["toward_camera"])
+    stain = materials.StainInputs(tuple(view["stain_linear_rgb"]), well_radius, scene_data["stain"])
+    stain_group = materials.stain_group()
+    objects: dict[str, bpy.types.Object] = {}
 
-    Returns
-    -------
-    dict
-        Handles the render passes need (``plaques``: the plaque object, ...).
-    """
-    scene_data = description["scene"]
-    view = description["view"]
-    bl_scene = bpy.context.scene
-    geometry_data = scene_data["plate"]
-    well_radius = float(geometry_data["well_radius_mm"])
-    stain_rgb = _stain_rgb(scene_data["stain"])
-    from_below = bool(scene_data["camera"]["from_below"])
-
-    root = bpy.data.objects.new("platesynth.plate_root", None)
-    bl_scene.collection.objects.link(root)
-    root.matrix_world = Matrix(view["plate_matrix"])
-
-    def parented(obj: bpy.types.Object) -> bpy.types.Object:
-        obj.parent = root
-        return obj
+    wells = scene_data["wells"]
+    well_attributes = _well_attributes(wells, int(scene_data["seed"]))
+    well_points = geometry.point_cloud("platesynth.wells", _with_z(_world_xy([w["center_mm"] for w in wells]), 0.0), well_attributes)
+    geometry.add_modifier(well_points, geometry.wells_group(materials.monolayer_material(stain_group, stain)), {"Well Radius": well_radius})
+    objects["wells"] = _tag(well_points, "both")
 
     look = scene_data["plate_look"]
-    plastic = materials.plastic_material(tuple(look["tint_rgb"]), float(look["transmittance"]), float(look["rim_darkness"]))
-    stain_group = materials.stain_group()
-
-    # wells: one point per well, carrying its id and stain values
-    wells = scene_data["wells"]
-    well_xy = _world_xy([w["center_mm"] for w in wells])
-    well_attributes = _well_attributes(wells, scene_data["seed"])
-    well_points = parented(geometry.point_cloud("platesynth.wells", _with_z(well_xy, 0.0), well_attributes))
-    geometry.add_modifier(
-        well_points,
-        geometry.wells_group(materials.monolayer_material(stain_group, stain_rgb, well_radius)),
-        {"Well Radius": well_radius, "Floor Height": FLOOR_MM},
-    )
-    _tag(well_points, "both")
-
     plate_inputs = {
-        "Length": geometry_data["length_mm"],
-        "Width": geometry_data["width_mm"],
-        "Height": geometry_data["height_mm"],
-        "Corner Radius": geometry_data["corner_radius_mm"],
+        "Length": plate_data["length_mm"],
+        "Width": plate_data["width_mm"],
+        "Height": plate_data["height_mm"],
+        "Corner Radius": plate_data["corner_radius_mm"],
         "Well Radius": well_radius,
-        "Wall": geometry_data["wall_mm"],
+        "Wall": plate_data["wall_mm"],
+        "Well Depth": plate_data["well_depth_mm"],
+        "Floor Thickness": view["floor_thickness_mm"],
     }
-    body_mesh = bpy.data.meshes.new("platesynth.plate_body")
-    body = parented(bpy.data.objects.new("platesynth.plate_body", body_mesh))
-    bl_scene.collection.objects.link(body)
-    # the body is generated from the well centres: share the wells' point cloud as its input geometry
-    body.data = well_points.data
-    geometry.add_modifier(body, plate.plate_group(plastic), plate_inputs)
-    _tag(body, "both")
-    bottom = parented(bpy.data.objects.new("platesynth.plate_bottom", bpy.data.meshes.new("platesynth.plate_bottom")))
-    bl_scene.collection.objects.link(bottom)
-    geometry.add_modifier(bottom, plate.plate_bottom_group(plastic), plate_inputs)
-    _tag(bottom, "image")
+    body_material = materials.plastic_material("platesynth.plastic_body", (1.0, 1.0, 1.0), 1.0, float(look["rim_darkness"]))
+    # built from the well centres too, without the wells' attributes (its walls must not show well ids)
+    body = geometry.point_cloud("platesynth.plate_body", _with_z(_world_xy([w["center_mm"] for w in wells]), 0.0), {})
+    geometry.add_modifier(body, plate.plate_group(body_material), plate_inputs)
+    objects["plate_body"] = _tag(body, "both")
+    sheet_material = materials.plastic_material("platesynth.plastic_bottom", tuple(look["tint_rgb"]), float(look["transmittance"]), 0.0)
+    bottom = bpy.data.objects.new("platesynth.plate_bottom", bpy.data.meshes.new("platesynth.plate_bottom"))
+    bpy.context.scene.collection.objects.link(bottom)
+    geometry.add_modifier(bottom, plate.plate_bottom_group(sheet_material), plate_inputs)
+    objects["plate_bottom"] = _tag(bottom, "image")
 
-    # plaques: one point per plaque, carrying its outline and the stain values of its well
     plaques = scene_data["plaques"]
     harmonics = max((len(p["fourier"]) for p in plaques), default=0)
-    plaque_points = parented(
-        geometry.point_cloud(
-            "platesynth.plaques",
-            _with_z(_world_xy([p["center_mm"] for p in plaques]), 0.0),
-            _plaque_attributes(plaques, wells, well_attributes, harmonics),
-        )
-    )
-    first_depth = 1 if from_below else 0  # the bottom sheet lies between the camera and the plaques
-    geometry.add_modifier(
-        plaque_points,
-        geometry.plaques_group(materials.plaque_material(stain_group, stain_rgb, well_radius, first_depth), harmonics),
-        {"Well Radius": well_radius, "Floor Height": FLOOR_MM, "Layer Step": -geometry.LAYER_STEP_MM if from_below else geometry.LAYER_STEP_MM},
-    )
-    _tag(plaque_points, "both")
+    plaque_attributes = _plaque_attributes(plaques, wells, well_attributes, harmonics)
+    plaque_xyz = _with_z(_world_xy([p["center_mm"] for p in plaques]), 0.0)
+    first_depth = 1 if toward_camera < 0 else 0  # seen from below, the bottom sheet lies in front of the plaques
+    plaque_group = geometry.plaques_group(materials.plaque_material(stain_group, stain, harmonics, first_depth), harmonics)
+    step = toward_camera * PLAQUE_LAYER_STEP_MM
+    # outlines (the masks) on top, in drawing order; their fuzzy fringes under all of them
+    cores = geometry.point_cloud("platesynth.plaques", plaque_xyz, plaque_attributes)
+    geometry.add_modifier(cores, plaque_group, {"Well Radius": well_radius, "Layer Step": step, "Layer Offset": float(len(plaques))})
+    objects["plaques"] = _tag(cores, "both")
+    fringes = bpy.data.objects.new("platesynth.plaque_fringes", cores.data)
+    bpy.context.scene.collection.objects.link(fringes)
+    geometry.add_modifier(fringes, plaque_group, {"Well Radius": well_radius, "Layer Step": step, "Margin": 1.0})
+    objects["plaque_fringes"] = _tag(fringes, "image")
 
-    _background(scene_data, view)
-    _lights(scene_data, view)
-    _camera(view, bl_scene)
+    _artifacts(scene_data, view, stain_group, stain, wells, well_attributes, objects)
+    _backdrop(scene_data, view, objects)
+    _camera(view)
+    world = bpy.data.worlds.new("platesynth.world")
+    world.color = (0.0, 0.0, 0.0)
+    bpy.context.scene.world = world
     for name in materials.MASK_AOVS:
-        aov = bl_scene.view_layers[0].aovs.add()
+        aov = bpy.context.scene.view_layers[0].aovs.add()
         aov.name, aov.type = name, "VALUE"
-    return {"root": root, "plaques": plaque_points}
+    return objects
 
 
 def _well_attributes(wells: Sequence[Mapping[str, Any]], seed: int) -> dict[str, np.ndarray]:
     stains = [w["stain"] for w in wells]
-    rng = np.random.default_rng(int(seed))
+    centres = _with_z(_world_xy([w["center_mm"] for w in wells]), 0.0)
     attributes: dict[str, np.ndarray] = {
         "well_id": np.array([w["id"] for w in wells], dtype=np.int32),
-        "emptied": np.array([float(w["emptied"]) for w in wells]),
-        "lysed": np.array([float(w["lysed"]) for w in wells]),
-        "texture_seed": rng.uniform(0.0, 1000.0, len(wells)),
-        "centre_offset": np.array([[s["centre_offset_mm"][0], s["centre_offset_mm"][1], 0.0] for s in stains]).reshape(-1, 3),
+        "well_center": centres,
+        "well_emptied": np.array([float(w["emptied"]) for w in wells]),
+        "well_lysed": np.array([float(w["lysed"]) for w in wells]),
+        # a different texture pattern per well and scene
+        "well_texture_seed": (seed % 9973) * 0.1 + 13.0 * np.arange(len(wells), dtype=np.float64),
+        "well_centre_offset": np.array([[*s["centre_offset_mm"], 0.0] for s in stains], dtype=np.float64).reshape(-1, 3),
     }
     for name in materials.WELL_ATTRIBUTES:
         if name not in attributes:
-            attributes[name] = np.array([float(s[name]) for s in stains])
+            attributes[name] = np.array([float(s[name.removeprefix("well_")]) for s in stains])
     return attributes
 
 
-def _plaque_attributes(
-    plaques: Sequence[Mapping[str, Any]],
-    wells: Sequence[Mapping[str, Any]],
-    well_attributes: Mapping[str, np.ndarray],
-    harmonics: int,
-) -> dict[str, np.ndarray]:
+def _per_well(well_ids: Sequence[int], wells: Sequence[Mapping[str, Any]], well_attributes: Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:
+    """The well attributes repeated for items lying in the wells ``well_ids`` (the stain under them)."""
     row_of_well = {w["id"]: i for i, w in enumerate(wells)}
-    rows = np.array([row_of_well[p["well"]] for p in plaques], dtype=np.int64)
-    well_xy = _world_xy([w["center_mm"] for w in wells])
-    attributes: dict[str, np.ndarray] = {
+    rows = np.array([row_of_well[i] for i in well_ids], dtype=np.int64)
+    return {name: values[rows] for name, values in well_attributes.items()}
+
+
+def _plaque_attributes(plaques: Sequence[Mapping[str, Any]], wells: Sequence[Mapping[str, Any]], well_attributes: Mapping[str, np.ndarray], harmonics: int) -> dict[str, np.ndarray]:
+    attributes: dict[str, np.ndarray] = _per_well([p["well"] for p in plaques], wells, well_attributes)
+    attributes |= {
         "plaque_id": np.array([p["id"] for p in plaques], dtype=np.int32),
         "radius": np.array([p["radius_mm"] for p in plaques], dtype=np.float64),
         "softness": np.array([p["softness"] for p in plaques], dtype=np.float64),
         "clearness": np.array([p["clearness"] for p in plaques], dtype=np.float64),
         "layer": np.arange(len(plaques), dtype=np.float64),
-        "well_center": _with_z(well_xy[rows], 0.0) if len(plaques) else np.zeros((0, 3)),
     }
     for k in range(harmonics):
-        attributes[f"fourier_a{k + 2}"] = np.array([p["fourier"][k][0] if k < len(p["fourier"]) else 0.0 for p in plaques])
-        attributes[f"fourier_b{k + 2}"] = np.array([p["fourier"][k][1] if k < len(p["fourier"]) else 0.0 for p in plaques])
-    for name, values in well_attributes.items():  # the stain under each plaque is its well's
-        attributes.setdefault(name, values[rows] if len(plaques) else values[:0])
+        for which, name in ((0, "a"), (1, "b")):
+            attributes[f"fourier_{name}{k + 2}"] = np.array([p["fourier"][k][which] if k < len(p["fourier"]) else 0.0 for p in plaques])
     return attributes
 
 
-def _plane(name: str, size_xy: tuple[float, float], location: tuple[float, float, float], material: bpy.types.Material) -> bpy.types.Object:
+def _artifacts(
+    scene_data: Mapping[str, Any],
+    view: Mapping[str, Any],
+    stain_group: bpy.types.NodeTree,
+    stain: materials.StainInputs,
+    wells: Sequence[Mapping[str, Any]],
+    well_attributes: Mapping[str, np.ndarray],
+    objects: dict[str, bpy.types.Object],
+) -> None:
+    """Scratches and specks on the monolayer, marker ink and blots on the plastic (image pass only)."""
+    artifacts = scene_data["artifacts"]
+    away = -float(view["toward_camera"])
+    lines, halves, owners, clearing, extra = [], [], [], [], []
+    for scratch in artifacts["scratches"]:
+        lines.append(_world_xy(scratch["points_mm"]))
+        halves.append(0.5 * scratch["width_mm"])
+        owners.append(scratch["well"])
+        clearing.append(0.95)
+        extra.append(0.0)
+    for speck in artifacts["debris"]:
+        angle = np.radians(speck["angle_deg"])
+        half = 0.5 * max(speck["length_mm"] - speck["width_mm"], 0.0)
+        centre = np.asarray(speck["center_mm"], dtype=np.float64)
+        direction = np.array([np.cos(angle), np.sin(angle)])
+        lines.append(_world_xy([centre - half * direction, centre + half * direction]))
+        halves.append(0.5 * speck["width_mm"])
+        owners.append(speck["well"])
+        clearing.append(0.0)
+        extra.append(speck["darkness"])
+    if lines:
+        attributes = _per_well(owners, wells, well_attributes) | {"mark_clearing": np.array(clearing), "mark_extra": np.array(extra)}
+        marks = geometry.strips("platesynth.marks", lines, halves, away * 0.3, attributes)
+        marks.data.materials.append(materials.marks_material(stain_group, stain))
+        objects["marks"] = _tag(marks, "image")
+
+    ink = materials.ink_material()
+    strokes = artifacts["marker"]
+    if strokes:
+        colours = np.array(view["marker_linear_rgb"], dtype=np.float64).reshape(-1, 3)
+        pen = geometry.strips("platesynth.marker", [_world_xy(s["points_mm"]) for s in strokes], [0.5 * s["width_mm"] for s in strokes], away * 0.6, {"ink": colours})
+        pen.data.materials.append(ink)
+        objects["marker"] = _tag(pen, "image")
+    blots = artifacts["blots"]
+    if blots:
+        stains = geometry.discs(
+            "platesynth.blots",
+            _world_xy([b["center_mm"] for b in blots]),
+            [b["radius_mm"] for b in blots],
+            away * 0.65,
+            {"ink": np.array(view["blot_linear_rgb"], dtype=np.float64).reshape(-1, 3)},
+        )
+        stains.data.materials.append(ink)
+        objects["blots"] = _tag(stains, "image")
+
+
+def _on_support(view: Mapping[str, Any], image_xy: np.ndarray, depth: float) -> np.ndarray:
+    """World points, ``depth`` mm behind the support plane, that the camera sees where the raster renderer draws
+    the image-aligned plate-plane points ``image_xy`` (mm from the plate centre, before the camera's rotation)."""
+    plate_centre = np.asarray(view["plate_center_world"][:2])
+    world = np.column_stack([plate_centre[0] + view["mirror"] * image_xy[:, 0], plate_centre[1] - image_xy[:, 1], np.zeros(len(image_xy))])
+    camera = np.asarray(view["camera_matrix"])[:3, 3]
+    z = float(view["support_z"]) - float(view["toward_camera"]) * depth
+    return camera + (world - camera) * ((z - camera[2]) / (0.0 - camera[2]))
+
+
+def _quad(
+    name: str,
+    view: Mapping[str, Any],
+    box: tuple[float, float, float, float],
+    depth: float,
+    material: bpy.types.Material,
+    uv_affine: tuple[float, float, float, float, float, float] | None = None,
+) -> bpy.types.Object:
+    """A rectangle ``(x0, y0, x1, y1)`` of the image-aligned backdrop, ``depth`` mm behind the support plane.
+
+    ``uv_affine`` = ``(a, b, c, d, e, f)`` gives the UV map ``(a x + b y + c, d x + e y + f)``."""
+    x0, y0, x1, y1 = box
+    corners = np.array([[x0, y0], [x1, y0], [x1, y1], [x0, y1]], dtype=np.float64)
+    points = _on_support(view, corners, depth)
     mesh = bpy.data.meshes.new(name)
-    half_x, half_y = size_xy[0] / 2, size_xy[1] / 2
-    mesh.from_pydata([(-half_x, -half_y, 0), (half_x, -half_y, 0), (half_x, half_y, 0), (-half_x, half_y, 0)], [], [(0, 1, 2, 3)])
+    face = (0, 1, 2, 3) if view["mirror"] > 0 else (3, 2, 1, 0)  # keep the face's normal towards the camera
+    mesh.from_pydata([tuple(p) for p in points], [], [face])
+    if uv_affine is not None:
+        a, b, c, d, e, f = uv_affine
+        layer = mesh.uv_layers.new(name="UVMap")
+        for loop in mesh.loops:
+            x, y = corners[loop.vertex_index]
+            layer.data[loop.index].uv = (a * x + b * y + c, d * x + e * y + f)
     mesh.materials.append(material)
     obj = bpy.data.objects.new(name, mesh)
-    obj.location = location
     bpy.context.scene.collection.objects.link(obj)
     return _tag(obj, "image")
 
 
-def _background(scene_data: Mapping[str, Any], view: Mapping[str, Any]) -> None:
+def _backdrop(scene_data: Mapping[str, Any], view: Mapping[str, Any], objects: dict[str, bpy.types.Object]) -> None:
+    """The glowing light-box panel, its frame, the ruler and the desk around them (or just a desk)."""
     background = scene_data["background"]
-    plate_data = scene_data["plate"]
-    centre = view["plate_center_world"]
-    under = view["support_z"]
-    length, width = plate_data["length_mm"], plate_data["width_mm"]
     seed = float(scene_data["seed"] % 997)
-    light_rgb = tuple(view["light_rgb"])
-    if background["kind"] == "lightbox":
-        margin = float(background["panel_margin_mm"])
-        panel = materials.emission_material("platesynth.lightbox", light_rgb, float(background["brightness"]) * view["lightbox_strength"])
-        _plane("platesynth.lightbox_panel", (length + 2 * margin, width + 2 * margin), (centre[0], centre[1], under - 0.5), panel)
-        frame = materials.surface_material("platesynth.lightbox_frame", tuple(background["color_rgb"]), float(background["texture"]), seed)
-        _plane("platesynth.lightbox_frame", (length * 6, width * 6), (centre[0], centre[1], under - 3.0), frame)
-    else:
-        desk = materials.surface_material("platesynth.desk", tuple(background["color_rgb"]), float(background["texture"]), seed)
-        _plane("platesynth.desk", (length * 6, width * 6), (centre[0], centre[1], under - 0.5), desk)
+    desk_rgb = tuple(view["desk_linear_rgb"])
+    far = 2000.0
+    if background["kind"] == "desk":
+        desk = materials.glow_material("platesynth.desk", desk_rgb, float(background["brightness"]), float(background["texture"]), seed)
+        objects["desk"] = _quad("platesynth.desk", view, (-far, -far, far, far), 0.5, desk)
+        return
+    left, top, right, bottom = (float(v) for v in background["panel_mm"])
+    frame_mm = float(background["frame_mm"])
+    panel = materials.glow_material("platesynth.lightbox_panel", (1.0, 1.0, 1.0), float(background["brightness"]))
+    objects["panel"] = _quad("platesynth.lightbox_panel", view, (left, top, right, bottom), 0.5, panel)
+    frame = materials.glow_material("platesynth.lightbox_frame", (1.0, 1.0, 1.0), 0.55)
+    objects["frame"] = _quad("platesynth.lightbox_frame", view, (left - frame_mm, top - frame_mm, right + frame_mm, bottom + frame_mm), 1.0, frame)
+    desk = materials.glow_material("platesynth.desk", desk_rgb, 1.0, float(background["texture"]), seed)
+    objects["desk"] = _quad("platesynth.desk", view, (-far, -far, far, far), 2.0, desk)
+    if background["ruler"]:
+        ruler = materials.ruler_material()
+        width = RULER_WIDTH_MM
+        # UV = (along, across): along the panel's left edge from its bottom end, along its bottom edge from its
+        # left end; across from the ruler's inner edge
+        objects["ruler_left"] = _quad("platesynth.ruler_left", view, (left - width, top, left, bottom + width), 0.25, ruler, (0.0, 1.0, -bottom, -1.0, 0.0, left))
+        objects["ruler_bottom"] = _quad("platesynth.ruler_bottom", view, (left, bottom, right, bottom + width), 0.25, ruler, (1.0, 0.0, -left, 0.0, 1.0, -bottom))
 
 
-def _lights(scene_data: Mapping[str, Any], view: Mapping[str, Any]) -> None:
-    light_rgb = tuple(view["light_rgb"])
-    centre = view["plate_center_world"]
-    data = bpy.data.lights.new("platesynth.room_light", "AREA")
-    data.shape = "DISK"
-    data.size = 600.0
-    data.color = light_rgb
-    data.energy = float(view["room_light_w"])
-    light = bpy.data.objects.new("platesynth.room_light", data)
-    light.location = (centre[0] + 80.0, centre[1] + 60.0, 600.0)
-    bpy.context.scene.collection.objects.link(light)
-    _tag(light, "image")
-    world = bpy.data.worlds.new("platesynth.world")
-    world.color = (0.0, 0.0, 0.0)
-    bpy.context.scene.world = world
-
-
-def _camera(view: Mapping[str, Any], bl_scene: bpy.types.Scene) -> None:
+def _camera(view: Mapping[str, Any]) -> None:
     data = bpy.data.cameras.new("platesynth.camera")
     data.sensor_fit = "HORIZONTAL"
     data.sensor_width = float(view["sensor_width_mm"])
@@ -233,15 +284,12 @@ def _camera(view: Mapping[str, Any], bl_scene: bpy.types.Scene) -> None:
     data.clip_start, data.clip_end = 1.0, 1e5
     camera = bpy.data.objects.new("platesynth.camera", data)
     camera.matrix_world = Matrix(view["camera_matrix"])
-    bl_scene.collection.objects.link(camera)
-    bl_scene.camera = camera
+    bpy.context.scene.collection.objects.link(camera)
+    bpy.context.scene.camera = camera
 
 
 def show_pass(which: str) -> None:
     """Show the objects of the ``"image"`` or ``"mask"`` pass to the renderer and hide the others."""
     for obj in bpy.context.scene.objects:
-        tag = obj.get(PASS_PROPERTY, "both")
-        obj.hide_render = tag not in ("both", which)
+        obj.hide_render = obj.get(PASS_PROPERTY, "both") not in ("both", which)
 
-
-__all__ = ["build", "reset", "show_pass", "math"]

@@ -1,0 +1,217 @@
+"""The Blender backend: the same concrete scenes drawn by Blender 5.0 (``bpy``) with Cycles, in worker processes.
+
+Host side (this package's top level, no ``bpy`` needed): :func:`render_blender`, :func:`export_blend`, the worker
+pool (:mod:`.pool`) and the scene description (:mod:`.describe`). Blender side (:mod:`.inside`, imported only in
+the worker process ``python -m platesynth.render.blender.worker``): building the bpy scene and rendering it.
+
+Examples
+--------
+>>> from platesynth.scene import load_config, sample_scene             # doctest: +SKIP
+>>> scene = sample_scene(load_config("high"), seed=1)                  # doctest: +SKIP
+>>> result = render_blender(scene, (1024, 768), samples=8)            # doctest: +SKIP
+>>> result.plaque_counts()                                            # doctest: +SKIP
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import os
+import shutil
+from pathlib import Path
+
+import numpy as np
+import tifffile
+
+from platesynth.errors import ImageReadError, ParameterError, RenderError
+from platesynth.io import read_image
+from platesynth.render.blender.describe import describe_scene
+from platesynth.render.blender.pool import (
+    BlenderScriptError,
+    BlenderWorkerError,
+    BlenderWorkerPool,
+    blender_home,
+    close_default_pool,
+    default_pool,
+)
+from platesynth.render.result import RenderResult, WellInfo
+from platesynth.scene.params import Scene
+
+ENGINES = ("CYCLES", "BLENDER_EEVEE")
+DEVICES = ("auto", "CPU", "GPU")
+DEFAULT_SAMPLES = 8
+
+
+def bpy_available() -> bool:
+    """Whether the ``bpy`` module (Blender as a Python module) is installed, without importing it."""
+    return importlib.util.find_spec("bpy") is not None
+
+
+def _check(size: tuple[int, int], samples: int, engine: str, device: str) -> tuple[int, int]:
+    try:
+        width, height = (int(s) for s in size)
+    except (TypeError, ValueError):
+        raise ParameterError(f"size must be (width, height), got {size!r}") from None
+    if not (16 <= width <= 16384 and 16 <= height <= 16384):
+        raise ParameterError(f"size {width}x{height} is out of range: each side must be in [16, 16384] pixels")
+    if not 1 <= int(samples) <= 4096:
+        raise ParameterError(f"samples must be in [1, 4096], got {samples}")
+    if engine not in ENGINES:
+        raise ParameterError(f"engine must be one of {', '.join(ENGINES)}, got {engine!r}")
+    if device not in DEVICES:
+        raise ParameterError(f"device must be one of {', '.join(DEVICES)}, got {device!r}")
+    if not bpy_available():
+        raise RenderError("the Blender backend needs bpy: pip install 'platesynth[blender]' (bpy 5.0.1, Python 3.11)")
+    return width, height
+
+
+def renumber(ids: np.ndarray) -> np.ndarray:
+    """Renumber the plaque ids present in a mask to 1..m, keeping their order (hidden plaques leave no gap)."""
+    present = np.unique(ids)
+    present = present[present > 0]
+    lookup = np.zeros(int(ids.max()) + 1 if ids.size else 1, dtype=np.uint16)
+    lookup[present] = np.arange(1, len(present) + 1, dtype=np.uint16)
+    return lookup[ids]
+
+
+def _read_mask(path: str, what: str) -> np.ndarray:
+    try:
+        mask = tifffile.imread(path)
+    except (OSError, ValueError, tifffile.TiffFileError) as exc:
+        raise RenderError(f"Blender's {what} mask {path} cannot be read: {exc}") from None
+    if mask.ndim == 3:
+        mask = mask[..., 0]
+    return mask
+
+
+def render_blender(
+    scene: Scene,
+    size: tuple[int, int] = (1024, 768),
+    *,
+    samples: int = DEFAULT_SAMPLES,
+    engine: str = "CYCLES",
+    device: str = "auto",
+    denoise: bool = False,
+    timeout: float | None = None,
+    pool: BlenderWorkerPool | None = None,
+) -> RenderResult:
+    """Draw ``scene`` with Blender: the image with ``samples`` samples per pixel, then exact masks.
+
+    Parameters
+    ----------
+    scene : a concrete scene (:func:`platesynth.scene.sample_scene`).
+    size : (width, height) in pixels.
+    samples : Cycles samples per pixel (EEVEE: TAA samples) of the image pass.
+    engine : ``"CYCLES"`` or ``"BLENDER_EEVEE"`` (the mask pass always uses Cycles).
+    device : ``"auto"`` (a CUDA/OptiX GPU where Cycles finds one, else the CPU), ``"CPU"`` or ``"GPU"``.
+    denoise : denoise the image pass (OpenImageDenoise, fast quality).
+    timeout : seconds one image may take (default: the pool's).
+    pool : the worker pool to use (default: a process-wide pool started on first use, closed at exit).
+
+    Returns
+    -------
+    RenderResult
+        RGB uint8 image, uint8 well mask and uint16 plaque mask (visible plaques numbered 1..m in drawing order),
+        with the same ids as the raster renderer for the same scene.
+
+    Raises
+    ------
+    ParameterError
+        For a bad size, sample count, engine or device.
+    RenderError
+        Where bpy is missing, Blender raised (:class:`BlenderScriptError`) or its worker crashed or hung twice
+        (:class:`BlenderWorkerError`, with Blender's log in ``log``).
+    """
+    width, height = _check(size, samples, engine, device)
+    pool = pool or default_pool()
+    out_dir = pool.new_output_dir()
+    try:
+        reply = pool.request(
+            {
+                "op": "render",
+                "scene": describe_scene(scene, (width, height)),
+                "options": {"samples": int(samples), "engine": engine, "device": device, "denoise": bool(denoise)},
+                "out_dir": str(out_dir),
+            },
+            timeout=timeout,
+        )
+        files = reply["files"]
+        try:
+            image = read_image(files["image"])
+        except ImageReadError as exc:
+            raise RenderError(f"Blender's image cannot be read: {exc}") from None
+        wells = _read_mask(files["well_id"], "well")
+        plaques = _read_mask(files["plaque_id"], "plaque")
+    finally:
+        shutil.rmtree(out_dir, ignore_errors=True)
+    if image.shape[:2] != (height, width) or wells.shape != (height, width) or plaques.shape != (height, width):
+        raise RenderError(f"Blender wrote images of the wrong size: {image.shape}, {wells.shape}, {plaques.shape} for {width}x{height}")
+    if image.ndim == 3 and image.shape[2] == 4:
+        image = image[..., :3]
+    if int(wells.max()) > 255:
+        raise RenderError(f"Blender's well mask holds id {int(wells.max())} > 255")
+    if scene.post.jpeg.enabled:
+        from platesynth.render.postprocess import jpeg_roundtrip
+
+        image = jpeg_roundtrip(image, scene.post.jpeg.strength)
+    well_info = [WellInfo(id=w.id, row=w.row, col=w.col, label=w.label) for w in scene.wells]
+    return RenderResult(image=np.ascontiguousarray(image), wells=wells.astype(np.uint8), plaques=renumber(plaques.astype(np.uint16)), well_info=well_info)
+
+
+def export_blend(
+    scene: Scene,
+    path: str | os.PathLike,
+    size: tuple[int, int] = (1024, 768),
+    *,
+    samples: int = DEFAULT_SAMPLES,
+    engine: str = "CYCLES",
+    device: str = "auto",
+    pool: BlenderWorkerPool | None = None,
+) -> Path:
+    """Save ``scene`` as a .blend file that opens in Blender 5.0, ready to render.
+
+    The plate, wells and plaques are geometry-node modifiers whose inputs (well radius, depth, segments, layer
+    step, extra random emptying...) are named; per-well and per-plaque values are point attributes; plate-wide
+    material values are named Value/RGB nodes (``Unevenness``, ``Translucency``, ``Stain Colour``...); the
+    compositor holds the post-processing with named strength nodes. The file is written atomically.
+
+    Returns
+    -------
+    pathlib.Path
+        ``path``.
+    """
+    width, height = _check(size, samples, engine, device)
+    target = Path(path)
+    if target.suffix.lower() != ".blend":
+        raise ParameterError(f"{target}: the file name must end in .blend")
+    pool = pool or default_pool()
+    pool.request(
+        {
+            "op": "export",
+            "scene": describe_scene(scene, (width, height)),
+            "options": {"samples": int(samples), "engine": engine, "device": device},
+            "path": str(target.resolve()),
+        }
+    )
+    return target
+
+
+def warm_up(pool: BlenderWorkerPool | None = None) -> None:
+    """Start the worker(s) of ``pool`` (default: the process-wide pool) now, e.g. as an executor's worker setup."""
+    (pool or default_pool()).request({"op": "ping"})
+
+
+__all__ = [
+    "BlenderScriptError",
+    "BlenderWorkerError",
+    "BlenderWorkerPool",
+    "DEFAULT_SAMPLES",
+    "blender_home",
+    "bpy_available",
+    "close_default_pool",
+    "default_pool",
+    "describe_scene",
+    "export_blend",
+    "render_blender",
+    "renumber",
+    "warm_up",
+]

@@ -1,0 +1,219 @@
+"""The raster renderer, its masks, the mask clean-up and the post-processing effects."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from platesynth.errors import ParameterError, ShapeMismatchError
+from platesynth.render import render
+from platesynth.render import postprocess as pp
+from platesynth.render.masks import clean_isolated_pixels
+from platesynth.render.raster import camera_view, render_raster
+from platesynth.render.result import plaque_counts
+from platesynth.scene import Scene, load_config, sample_scene
+from platesynth.scene.params import Plaque
+
+SMALL = (256, 192)
+
+
+def small_scene(preset: str = "high", seed: int = 1, **overrides) -> Scene:
+    return sample_scene(load_config(preset, overrides=overrides or None), seed)
+
+
+def test_same_scene_gives_byte_identical_arrays():
+    scene = small_scene("high", 3)
+    first = render(scene, SMALL)
+    again = render_raster(Scene.model_validate(scene.model_dump(mode="json")), SMALL)
+    for name in ("image", "wells", "plaques"):
+        assert getattr(first, name).tobytes() == getattr(again, name).tobytes()
+    other = render(small_scene("high", 4), SMALL)
+    assert other.image.tobytes() != first.image.tobytes()
+
+
+def test_masks_have_the_promised_types_and_ids():
+    scene = small_scene("high", 2, **{"plaques.negative_plate": 0.0, "plaques.top_count": 300})
+    result = render(scene, SMALL)
+    assert result.image.shape == (192, 256, 3) and result.image.dtype == np.uint8
+    assert result.wells.shape == (192, 256) and result.wells.dtype == np.uint8
+    assert result.plaques.shape == (192, 256) and result.plaques.dtype == np.uint16
+    plaque_ids = np.unique(result.plaques)
+    assert plaque_ids[0] == 0 and list(plaque_ids[1:]) == list(range(1, len(plaque_ids)))
+    assert len(plaque_ids) > 5
+    assert set(np.unique(result.wells)) - {0} <= {w.id for w in scene.wells}
+    assert [(w.id, w.row, w.col, w.label) for w in result.well_info] == [
+        (w.id, w.row, w.col, w.label) for w in scene.wells
+    ]
+    # every plaque pixel lies inside a well, and each plaque in one well only
+    assert np.all(result.wells[result.plaques > 0] > 0)
+    pairs = np.unique(np.stack([result.plaques[result.plaques > 0], result.wells[result.plaques > 0]]), axis=1)
+    assert len(np.unique(pairs[0])) == pairs.shape[1]
+
+
+def test_counts_from_masks_equal_the_scene_when_no_plaque_is_hidden():
+    overrides = {"plaques.max_overlap": 0.0, "plaques.radius_mm": [0.8, 1.2], "plaques.negative_plate": 0.0,
+                 "plaques.top_count": 40, "plaques.lysis_count": 1000, "plaques.irregularity": 0.0}
+    scene = small_scene("high", 5, **overrides)
+    result = render(scene, (320, 240))
+    expected = {w.id: 0 for w in scene.wells}
+    for plaque in scene.plaques:
+        expected[plaque.well] += 1
+    assert sum(expected.values()) > 10
+    assert result.plaque_counts() == expected
+
+
+def _with_plaques(scene: Scene, plaques: list[tuple[float, float, float]]) -> Scene:
+    """The scene with its plaques replaced by round ones ``(dx, dy, radius)`` mm around well 1's centre."""
+    well = next(w for w in scene.wells if w.id == 1)
+    made = tuple(
+        Plaque(id=i + 1, well=1, center_mm=(well.center_mm[0] + dx, well.center_mm[1] + dy), radius_mm=r,
+               fourier=(), softness=0.2, clearness=0.9)
+        for i, (dx, dy, r) in enumerate(plaques)
+    )
+    return scene.model_copy(update={"plaques": made})
+
+
+def test_hidden_plaques_are_absent_and_the_topmost_wins():
+    base = small_scene("low", 1, **{"wells.emptied": 0.0})
+    # plaque 1 lies wholly under plaque 2; plaque 3 is partly covered by plaque 4
+    scene = _with_plaques(base, [(0.0, 0.0, 1.0), (0.0, 0.0, 2.5), (6.0, 0.0, 2.0), (8.0, 0.0, 2.0)])
+    result = render(scene, (512, 384))
+    assert sorted(np.unique(result.plaques)) == [0, 1, 2, 3]
+    view = camera_view(scene, 512, 384)
+    centre = view.project(np.array(next(w.center_mm for w in scene.wells if w.id == 1))).astype(int)
+    assert result.plaques[centre[1], centre[0]] == 1  # the covering plaque, renumbered first
+    between = view.project(np.array([scene.plaques[2].center_mm[0] + 1.5, scene.plaques[2].center_mm[1]]))
+    assert result.plaques[int(between[1]), int(between[0])] == 3  # overlap goes to the later plaque
+    assert result.plaque_counts()[1] == 3
+
+
+def test_plaques_are_clipped_to_their_well():
+    base = small_scene("low", 1, **{"wells.emptied": 0.0})
+    radius = base.plate.well_radius_mm
+    scene = _with_plaques(base, [(radius - 0.5, 0.0, 3.0)])
+    result = render(scene, (512, 384))
+    plaque = result.plaques == 1
+    assert plaque.any()
+    assert np.all(result.wells[plaque] == 1)
+    wider = render(_with_plaques(base, [(radius - 3.5, 0.0, 3.0)]), (512, 384))
+    assert plaque.sum() < (wider.plaques == 1).sum()
+
+
+@pytest.mark.parametrize("fmt", [6, 12, 24, 96])
+def test_every_plate_format_renders_all_wells(fmt):
+    scene = small_scene("diverse", 2, **{"plate.format": fmt, "camera.plate_fill": 0.9, "camera.offset": 0.0,
+                                         "camera.tilt_deg": 0.0})
+    result = render(scene, SMALL)
+    assert sorted(np.unique(result.wells))[1:] == list(range(1, fmt + 1))
+    # ids run row-major over the image grid: well 1 top-left, well n bottom-right
+    ys, xs = np.nonzero(result.wells == 1)
+    ye, xe = np.nonzero(result.wells == fmt)
+    assert ys.mean() < ye.mean() and xs.mean() < xe.mean()
+
+
+def test_from_below_mirrors_the_plate():
+    below = small_scene("low", 3, **{"camera.from_below": 1.0})
+    result = render(below, SMALL)
+    a1 = next(w.id for w in below.wells if w.label == "A1")
+    a4 = next(w.id for w in below.wells if w.label == "A4")
+    assert np.nonzero(result.wells == a1)[1].mean() > np.nonzero(result.wells == a4)[1].mean()
+
+
+def test_stained_wells_are_purple_and_the_plate_bright():
+    scene = small_scene("low", 4, **{"wells.emptied": 0.0, "plaques.negative_plate": 1.0})
+    result = render(scene, SMALL)
+    inside = result.image[result.wells > 0].astype(float)
+    red, green, blue = inside.mean(axis=0)
+    assert blue > red > green and blue - green > 80
+    outside = result.image[result.wells == 0].astype(float).mean(axis=0)
+    assert outside.mean() > inside.mean() + 40
+
+
+def test_any_resolution_keeps_the_geometry():
+    scene = small_scene("low", 6)
+    small = render(scene, (200, 150))
+    large = render(scene, (400, 300))
+    assert abs((large.wells > 0).mean() - (small.wells > 0).mean()) < 0.01
+    assert np.unique(small.wells).tolist() == np.unique(large.wells).tolist()
+
+
+def test_bad_size_and_backend_are_refused():
+    scene = small_scene("low", 1)
+    with pytest.raises(ParameterError, match="size"):
+        render(scene, (0, 10))
+    with pytest.raises(ParameterError, match="unknown backend 'povray'"):
+        render(scene, SMALL, backend="povray")
+
+
+def test_clean_isolated_pixels_hand_made_cases():
+    mask = np.array(
+        [
+            [1, 1, 1, 0, 0],
+            [1, 2, 1, 0, 0],
+            [1, 1, 1, 0, 3],
+            [0, 0, 0, 0, 0],
+            [4, 4, 0, 5, 5],
+        ],
+        dtype=np.uint16,
+    )
+    cleaned = clean_isolated_pixels(mask)
+    expected = mask.copy()
+    expected[1, 1] = 1  # an isolated 2 inside 1s
+    expected[2, 4] = 0  # an isolated 3 among background
+    assert cleaned.dtype == np.uint16
+    np.testing.assert_array_equal(cleaned, expected)
+    # a tie among neighbours goes to the smaller value; a pixel with one equal neighbour is kept
+    tie = np.array([[1, 1, 9], [2, 7, 1], [2, 2, 9]], dtype=np.uint8)
+    assert clean_isolated_pixels(tie)[1, 1] == 1  # 1 and 2 have 3 votes each
+    kept = np.array([[0, 0, 0], [0, 5, 5], [0, 0, 0]], dtype=np.uint8)
+    np.testing.assert_array_equal(clean_isolated_pixels(kept), kept)
+    with pytest.raises(ShapeMismatchError):
+        clean_isolated_pixels(np.zeros((2, 2, 2)))
+
+
+def test_post_processing_effects_change_the_image_as_described():
+    rng = np.random.default_rng(0)
+    image = np.clip(rng.normal(0.5, 0.1, (64, 80, 3)), 0, 1).astype(np.float32)
+    assert pp.brightness(image, 0.2).mean() > image.mean() > pp.brightness(image, -0.2).mean()
+    warm = pp.white_balance(image, (1.1, 1.0, 0.9))
+    assert warm[..., 0].mean() > image[..., 0].mean() and warm[..., 2].mean() < image[..., 2].mean()
+    assert pp.sharpen(image, 1.0).std() > image.std() > pp.gaussian_blur(image, 1.5).std()
+    assert pp.clarity(image, 0.5).std() > image.std()
+    stripes = np.zeros((40, 40, 3), dtype=np.float32)
+    stripes[:, ::4] = 1.0
+    blurred = pp.motion_blur(stripes, 4.0, 0.0)  # along the stripes' normal: smeared
+    assert blurred[:, 8:32].std() < 0.5 * stripes[:, 8:32].std()
+    assert np.allclose(pp.motion_blur(stripes, 4.0, 90.0)[8:32], stripes[8:32], atol=1e-5)  # along them: unchanged
+    noisy = pp.sensor_noise(image, 5.0, np.random.default_rng(1))
+    assert 2.0 / 255 < (noisy - image).std() < 8.0 / 255
+    assert np.array_equal(noisy, pp.sensor_noise(image, 5.0, np.random.default_rng(1)))
+    shifted = pp.chromatic_aberration(image, 3.0)
+    assert np.array_equal(shifted[..., 1], image[..., 1]) and not np.array_equal(shifted[..., 0], image[..., 0])
+    dark = np.zeros((200, 200, 3), dtype=np.float32)
+    dark[98:102, 98:102] = 1.0
+    glowing = pp.bloom(dark, 0.5)
+    assert glowing[100, 106].mean() > 0.01 and glowing[100, 130].mean() < glowing[100, 106].mean()
+    assert pp.shadows(np.ones_like(image), 0.3, np.random.default_rng(2)).min() < 1.0
+    u8 = pp.to_uint8(image)
+    assert pp.jpeg_roundtrip(u8, 0.5).shape == u8.shape and not np.array_equal(pp.jpeg_roundtrip(u8, 0.5), u8)
+
+
+def test_post_processing_switches_are_honoured():
+    scene = small_scene("low", 2)
+    plain = render(scene, SMALL).image
+    noisy_post = scene.post.model_copy(update={"noise": scene.post.noise.model_copy(update={"enabled": True,
+                                                                                             "strength": 6.0})})
+    noisy = render(scene.model_copy(update={"post": noisy_post}), SMALL).image
+    difference = noisy.astype(float) - plain.astype(float)
+    assert 3.0 < difference.std() < 12.0
+
+
+def test_plaque_counts_match_masks_for_sampled_scenes():
+    scene = small_scene("high", 9, **{"plaques.negative_plate": 0.0})
+    result = render(scene, SMALL)
+    counts = plaque_counts(result.wells, result.plaques)
+    visible = {w.id: 0 for w in scene.wells}
+    for pid in np.unique(result.plaques)[1:]:
+        visible[int(np.bincount(result.wells[result.plaques == pid]).argmax())] += 1
+    assert {k: v for k, v in visible.items() if k in counts} == counts
+    assert sum(counts.values()) == len(np.unique(result.plaques)) - 1

@@ -1,0 +1,221 @@
+"""The scene parameter model: configurations, presets, validation, seeded sampling, the parameter table."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+from platesynth.cli import app
+from platesynth.errors import ParameterError
+from platesynth.scene import (
+    Dist,
+    Scene,
+    SceneConfig,
+    dump_config,
+    list_presets,
+    load_config,
+    load_scene,
+    parameter_names,
+    parameter_table,
+    sample_scene,
+)
+
+
+@pytest.mark.parametrize("preset", ["high", "medium", "low", "lightbox12", "diverse"])
+def test_presets_load_and_sample_json_roundtrip(preset):
+    config = load_config(preset)
+    assert config.name == preset
+    scene = sample_scene(config, 11)
+    data = json.loads(json.dumps(scene.model_dump(mode="json")))
+    assert Scene.model_validate(data) == scene
+    assert len(scene.wells) == scene.plate.format
+    assert sorted(w.id for w in scene.wells) == list(range(1, scene.plate.format + 1))
+    assert [p.id for p in scene.plaques] == list(range(1, len(scene.plaques) + 1))
+
+
+def test_list_presets_has_realism_levels_and_lightbox():
+    assert {"high", "medium", "low", "lightbox12"} <= set(list_presets())
+
+
+def test_same_seed_same_scene_other_seed_other_scene():
+    config = load_config("high")
+    assert sample_scene(config, 5) == sample_scene(config, 5)
+    assert sample_scene(config, 5) != sample_scene(config, 6)
+
+
+def test_low_preset_lacks_post_processing_and_detail():
+    scene = sample_scene(load_config("low"), 3)
+    post = scene.post.model_dump()
+    assert not any(v["enabled"] for v in post.values() if isinstance(v, dict))
+    assert scene.artifacts.scratches == () and scene.artifacts.debris == ()
+    assert scene.stain.unevenness == 0 and all(w.stain.drying_detail == 0 for w in scene.wells)
+    high = sample_scene(load_config("high"), 3)
+    assert any(v["enabled"] for v in high.post.model_dump().values() if isinstance(v, dict))
+
+
+def test_dilution_series_across_columns():
+    overrides = {"plaques.negative_plate": 0.0, "plaques.top_count": 500, "plaques.dilution_factor": 10,
+                 "plaques.lysis_count": 2000, "wells.emptied": 0.0}
+    scene = sample_scene(load_config("high", overrides=overrides), 1)
+    by_label = {w.label: w for w in scene.wells}
+    for row in "ABC":
+        expected = [by_label[f"{row}{c}"].expected_plaques for c in range(1, 5)]
+        assert expected == pytest.approx([500, 50, 5, 0.5])
+    counts = {w.id: 0 for w in scene.wells}
+    for plaque in scene.plaques:
+        counts[plaque.well] += 1
+    column_totals = [sum(counts[by_label[f"{r}{c}"].id] for r in "ABC") for c in range(1, 5)]
+    assert column_totals[0] > column_totals[1] > column_totals[2]
+
+
+def test_lysed_wells_hold_no_plaques_and_emptied_wells_no_cells():
+    overrides = {"plaques.negative_plate": 0.0, "plaques.top_count": 5000, "plaques.lysis_count": 1000,
+                 "wells.emptied": 0.3}
+    scene = sample_scene(load_config("high", overrides=overrides), 4)
+    lysed = {w.id for w in scene.wells if w.lysed}
+    emptied = {w.id for w in scene.wells if w.emptied}
+    assert lysed and emptied and not lysed & emptied
+    assert all(w.expected_plaques > 1000 for w in scene.wells if w.lysed)
+    assert not {p.well for p in scene.plaques} & (lysed | emptied)
+
+
+def test_from_below_mirrors_the_image_grid():
+    below = sample_scene(load_config("high", overrides={"camera.from_below": 1.0}), 2)
+    above = sample_scene(load_config("high", overrides={"camera.from_below": 0.0}), 2)
+    a1_below = next(w for w in below.wells if w.label == "A1")
+    a1_above = next(w for w in above.wells if w.label == "A1")
+    assert (a1_below.row, a1_below.col, a1_below.id) == (0, 3, 4)
+    assert (a1_above.row, a1_above.col, a1_above.id) == (0, 0, 1)
+
+
+def test_plaques_lie_in_their_wells_with_sizes_in_range():
+    scene = sample_scene(load_config("high", overrides={"plaques.negative_plate": 0.0}), 8)
+    wells = scene.well_by_id()
+    assert scene.plaques
+    for plaque in scene.plaques:
+        well = wells[plaque.well]
+        offset = np.subtract(plaque.center_mm, well.center_mm)
+        assert np.hypot(*offset) <= scene.plate.well_radius_mm + 1e-6
+        assert 0.05 <= plaque.radius_mm <= 0.5 * scene.plate.well_radius_mm
+
+
+def test_max_overlap_zero_keeps_plaques_apart():
+    overrides = {"plaques.max_overlap": 0.0, "plaques.top_count": 60, "plaques.negative_plate": 0.0}
+    scene = sample_scene(load_config("high", overrides=overrides), 3)
+    by_well: dict[int, list] = {}
+    for p in scene.plaques:
+        by_well.setdefault(p.well, []).append(p)
+    for plaques in by_well.values():
+        for i, a in enumerate(plaques):
+            for b in plaques[i + 1 :]:
+                assert np.hypot(*np.subtract(a.center_mm, b.center_mm)) >= a.radius_mm + b.radius_mm - 1e-3
+
+
+@pytest.mark.parametrize(
+    ("overrides", "fragments"),
+    [
+        ({"plaques.radus_mm": 1.0}, ["plaques.radus_mm", "unknown parameter", "plaques.radius_mm"]),
+        ({"plaques.radius_mm": "big"}, ["plaques.radius_mm", "'big'"]),
+        ({"camera.from_below": "yes"}, ["camera.from_below", "wrong type"]),
+        ({"plaques.radius_mm": [0.01, 2.0]}, ["plaques.radius_mm", "out of range", "[0.05, 10]", "mm"]),
+        ({"camera.from_below": 1.5}, ["camera.from_below", "[0, 1]"]),
+        ({"plate.format": 7}, ["plate.format", "6, 12, 24, 96"]),
+        ({"plate.format": [6, 96]}, ["plate.format", "choice"]),
+        ({"background.kind": "moon"}, ["background.kind", "lightbox, desk"]),
+        ({"plaques.radius_mm": [2.0, 1.0]}, ["plaques.radius_mm", "above high"]),
+        ({"plaques.radius_mm": {"loguniform": [0.0, 1.0]}}, ["plaques.radius_mm", "low > 0"]),
+    ],
+)
+def test_invalid_values_are_refused_with_a_clear_message(overrides, fragments):
+    with pytest.raises(ParameterError) as info:
+        load_config("high", overrides=overrides)
+    message = str(info.value)
+    assert "\n" not in message
+    for fragment in fragments:
+        assert fragment in message
+
+
+def test_user_yaml_file_and_overrides_apply_in_order(tmp_path):
+    path = tmp_path / "mine.yaml"
+    path.write_text("plate:\n  format: 24\nplaques:\n  radius_mm: [0.4, 0.6]\n")
+    config = load_config("low", path=path, overrides={"plaques.radius_mm": 0.5})
+    assert config.name == "mine"
+    assert config.plate.format == Dist.model_validate(24)
+    assert config.plaques.radius_mm == Dist.model_validate(0.5)
+    assert config.post.noise == 0.0  # from the preset
+
+
+def test_bad_files_name_the_file(tmp_path):
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("plate: [1, 2\n")
+    with pytest.raises(ParameterError, match="bad.yaml"):
+        load_config(path=bad)
+    wrong = tmp_path / "wrong.yaml"
+    wrong.write_text("plates:\n  format: 12\n")
+    with pytest.raises(ParameterError, match=r"wrong.yaml: plates: unknown parameter \(did you mean plate"):
+        load_config(path=wrong)
+    with pytest.raises(ParameterError, match="no such configuration file"):
+        load_config(path=tmp_path / "missing.yaml")
+    with pytest.raises(ParameterError, match="unknown preset 'hihg'"):
+        load_config("hihg")
+
+
+def test_dump_config_roundtrips(tmp_path):
+    config = load_config("diverse")
+    path = tmp_path / "copy.yaml"
+    path.write_text(dump_config(config))
+    assert load_config(path=path) == config
+
+
+def test_distributions_sample_within_their_support():
+    rng = np.random.default_rng(0)
+    bounds = (0.0, 10.0)
+    uniform = [Dist.model_validate([2, 3]).sample(rng, bounds) for _ in range(200)]
+    assert 2 <= min(uniform) and max(uniform) <= 3
+    logs = [Dist.model_validate({"loguniform": [0.1, 10]}).sample(rng, bounds) for _ in range(400)]
+    assert 0.1 <= min(logs) and max(logs) <= 10 and np.median(logs) < 2.0
+    normal = [Dist.model_validate({"normal": [9.5, 5.0]}).sample(rng, bounds) for _ in range(200)]
+    assert max(normal) == 10.0 and min(normal) >= 0.0
+    choice = Dist.model_validate({"choice": [6, 96], "weights": [0, 1]})
+    assert {choice.sample(rng, (6, 96), integer=True) for _ in range(20)} == {96}
+
+
+def test_parameter_table_is_complete_and_generated_from_the_model():
+    table = parameter_table()
+    names = [row["name"] for row in table]
+    assert names == parameter_names() and len(set(names)) == len(names)
+    assert {"plate.format", "plaques.radius_mm", "post.noise_strength", "stain.hue_deg"} <= set(names)
+    for row in table:
+        assert set(row) == {"name", "type", "unit", "range", "default", "description"}
+        assert row["description"] and row["type"] in {"number", "integer", "probability", "category"}
+    radius = next(r for r in table if r["name"] == "plaques.radius_mm")
+    assert radius["unit"] == "mm" and radius["range"] == [0.05, 10.0]
+    defaults = {row["name"]: row["default"] for row in table}
+    assert SceneConfig().plaques.radius_mm == Dist.model_validate(defaults["plaques.radius_mm"])
+
+
+def test_load_scene_reports_bad_files(tmp_path):
+    scene = sample_scene(load_config("low"), 1)
+    good = tmp_path / "scene.json"
+    good.write_text(json.dumps(scene.model_dump(mode="json")))
+    assert load_scene(good) == scene
+    bad = tmp_path / "bad.json"
+    bad.write_text(json.dumps({**scene.model_dump(mode="json"), "plaques": "many"}))
+    with pytest.raises(ParameterError, match="bad.json: not a valid scene"):
+        load_scene(bad)
+
+
+def test_cli_scene_params_json_and_errors():
+    runner = CliRunner()
+    result = runner.invoke(app, ["scene", "params", "--json"])
+    assert result.exit_code == 0, result.output
+    assert [row["name"] for row in json.loads(result.stdout)] == parameter_names()
+    result = runner.invoke(app, ["scene", "show", "--preset", "low", "--set", "plaques.radius_mm=[0.01,1]"])
+    assert result.exit_code == 1
+    assert "valid range is [0.05, 10]" in result.output and "Traceback" not in result.output
+    result = runner.invoke(app, ["scene", "sample", "--preset", "low", "--seed", "3"])
+    assert result.exit_code == 0
+    assert Scene.model_validate(json.loads(result.stdout)) == sample_scene(load_config("low"), 3)

@@ -1,0 +1,233 @@
+"""Training, resuming, prediction and evaluation of the segmentation model on a few rendered images, and the CLI."""
+
+from __future__ import annotations
+
+import csv
+import hashlib
+import json
+import shutil
+
+import numpy as np
+import pytest
+import tifffile
+import torch
+from typer.testing import CliRunner
+
+from platesynth.cli import app
+from platesynth.data.layout import list_items, load_item, read_counts_csv
+from platesynth.errors import DatasetError
+from platesynth.render.result import RenderResult
+from platesynth.segment.counts import evaluate_counts, sort_wells
+from platesynth.segment.data import SegmentationDataset
+from platesynth.segment.loss import segmentation_loss
+from platesynth.segment.matching import evaluate_masks
+from platesynth.segment.model import ModelConfig, StarDistTwoBranch, load_model
+from platesynth.segment.train import CHECKPOINT_NAME, TrainConfig, split_items, train
+
+runner = CliRunner()
+TINY = ModelConfig(channels=(8, 12, 16), context_dilations=(2,), input_long_side=128)
+
+
+def invoke(*args: str):
+    return runner.invoke(app, [str(a) for a in args])
+
+
+@pytest.fixture(scope="module")
+def rendered(tmp_path_factory):
+    """Four small rendered 12-well plates (the renderer's own masks and counts.csv)."""
+    out = tmp_path_factory.mktemp("rendered") / "data"
+    result = invoke("render", "--out", out, "--count", 4, "--seed", 5, "--preset", "high", "--plate", 12, "--size", "128x96")
+    assert result.exit_code == 0, result.output
+    return out
+
+
+@pytest.fixture(scope="module")
+def tiny_model(rendered, tmp_path_factory):
+    model_dir = tmp_path_factory.mktemp("model") / "tiny"
+    config = TrainConfig(data=[str(rendered)], epochs=1, steps_per_epoch=2, batch_size=2, patch=(64, 64), val_fraction=0.25)
+    train(config, model_dir, TINY)
+    return model_dir
+
+
+def test_loss_falls_on_rendered_images(rendered):
+    torch.manual_seed(0)
+    dataset = SegmentationDataset(list_items(rendered), TINY, patch=(64, 64), augmentation=None, seed=1)
+    batch = {k: torch.stack([dataset[(i, 0)][k] for i in range(4)]) for k in dataset[0]}
+    model = StarDistTwoBranch(TINY)
+    optimizer = torch.optim.Adam(model.parameters(), lr=3e-3)
+    losses = []
+    for _ in range(25):
+        loss, _ = segmentation_loss(model(batch["image"]), batch)
+        optimizer.zero_grad()
+        loss.backward()
+        optimizer.step()
+        losses.append(float(loss))
+    assert losses[-1] < 0.6 * losses[0]
+
+
+class _Stop(Exception):
+    pass
+
+
+def test_training_resumes_to_the_same_weights(rendered, tmp_path):
+    config = TrainConfig(
+        data=[str(rendered)], epochs=2, steps_per_epoch=2, batch_size=2, patch=(64, 64), val_fraction=0.25, tune_thresholds=False
+    )
+    straight = train(config, tmp_path / "straight", TINY)
+    assert straight.epochs_done == 2 and straight.resumed_from_epoch == 0
+
+    def stop_after_first_epoch(event):
+        if event.get("epoch") == 1 and "val_loss" in event:
+            raise _Stop
+
+    with pytest.raises(_Stop):
+        train(config, tmp_path / "resumed", TINY, progress=stop_after_first_epoch)
+    resumed = train(config, tmp_path / "resumed", TINY)
+    assert resumed.resumed_from_epoch == 1 and resumed.epochs_done == 2
+    first = torch.load(tmp_path / "straight" / CHECKPOINT_NAME, weights_only=False)["model"]
+    second = torch.load(tmp_path / "resumed" / CHECKPOINT_NAME, weights_only=False)["model"]
+    assert all(torch.equal(first[k], second[k]) for k in first)
+    assert [h["train_loss"] for h in straight.history] == [h["train_loss"] for h in resumed.history]
+
+    # the model directory describes its training data; the baseline is the training images' mean count
+    saved = json.loads((tmp_path / "straight" / "config.json").read_text())
+    train_items, val_items = split_items(list_items(rendered), 0.25, config.seed)
+    names = {item.image_path.name for item in train_items}
+    counts = [w.count for w in read_counts_csv(rendered / "counts.csv") if w.image in names]
+    assert saved["training"]["mean_plaques_per_well"] == pytest.approx(np.mean(counts))
+    assert saved["training"]["sources"][0]["n_train"] == len(train_items) == 3
+    assert saved["training"]["sources"][0]["preset"] == "high"
+
+    with pytest.raises(DatasetError, match="different training"):
+        train(config.model_copy(update={"seed": 1}), tmp_path / "straight", TINY)
+
+
+def _oracle(rendered, drop_plaque_in=None):
+    """A predictor that returns the true masks of the rendered image it is given (optionally minus one plaque)."""
+    truth = {}
+    for item in list_items(rendered):
+        image, wells, plaques = load_item(item)
+        truth[hashlib.sha1(image.tobytes()).hexdigest()] = (wells, plaques)
+
+    def predict(image):
+        wells, plaques = truth[hashlib.sha1(image.tobytes()).hexdigest()]
+        sorted_wells, info = sort_wells(wells, 12, from_below=True)
+        result = RenderResult(image, sorted_wells, plaques.copy(), info)
+        if drop_plaque_in is not None:
+            counts = result.plaque_counts()
+            well = next(w for w in info if counts[w.id] > 0)
+            victim = np.unique(plaques[(sorted_wells == well.id) & (plaques > 0)])[0]
+            result.plaques[result.plaques == victim] = 0
+        return result
+
+    return predict
+
+
+def test_evaluate_counts_with_known_counts(rendered):
+    table = read_counts_csv(rendered / "counts.csv")
+    report = evaluate_counts(_oracle(rendered), rendered / "images", rendered / "counts.csv", 12, baseline_count=2.0)
+    assert report["n_wells"] == len(table) == 48 and report["n_images"] == 4
+    assert report["mae"] == 0.0 and report["rmse"] == 0.0 and report["n_wells_not_detected"] == 0
+    assert report["pearson_r"] == pytest.approx(1.0)
+    truth = [w.count for w in table]
+    assert report["baseline"]["mae"] == pytest.approx(np.mean(np.abs(np.array(truth) - 2.0)))
+    assert sorted((w["image"], w["row"], w["col"], w["predicted"]) for w in report["wells"]) == sorted(
+        (w.image, w.row, w.col, w.count) for w in table
+    )
+    # one plaque fewer on every image: each image has one well off by one
+    off = evaluate_counts(_oracle(rendered, drop_plaque_in=True), rendered / "images", rendered / "counts.csv", 12)
+    assert off["mae"] == pytest.approx(4 / 48) and off["bias"] == pytest.approx(-4 / 48)
+
+
+def test_evaluate_masks_with_true_masks(rendered):
+    report = evaluate_masks(_oracle(rendered), rendered, taus=(0.5, 0.9))
+    assert report["n_images"] == 4
+    for name in ("wells", "plaques"):
+        assert report[name]["0.9"]["ap_mean"] == 1.0
+        assert report[name]["0.9"]["fp"] == 0 and report[name]["0.9"]["fn"] == 0
+    assert report["wells"]["0.5"]["n_true"] == 48
+
+
+def test_cli_train_predict_evaluate(rendered, tiny_model, tmp_path):
+    config = load_model(tiny_model).config
+    assert config.training["thresholds_tuned_on"] == 1
+
+    out = tmp_path / "pred"
+    images = sorted((rendered / "images").glob("*.png"))[:2]
+    result = invoke("predict", *images, "--model", tiny_model, "--out", out)
+    assert result.exit_code == 0, result.output
+    for image in images:
+        wells = tifffile.imread(out / "masks" / "wells" / f"{image.stem}.tif")
+        plaques = tifffile.imread(out / "masks" / "plaques" / f"{image.stem}.tif")
+        assert wells.shape == plaques.shape == (96, 128)
+        assert wells.dtype == np.uint8 and plaques.dtype == np.uint16
+        params = json.loads((out / "params" / f"{image.stem}.json").read_text())
+        assert [w["id"] for w in params["wells"]] == sorted(int(i) for i in np.unique(wells) if i)
+    rows = list(csv.DictReader((out / "counts.csv").open()))
+    assert {r["image"] for r in rows} <= {i.name for i in images}
+    assert all(int(r["count"]) >= 0 for r in rows)
+
+    result = invoke("evaluate", "masks", "--model", tiny_model, "--data", rendered, "--tau", 0.5, "--tau", 0.7, "--json")
+    assert result.exit_code == 0, result.output
+    report = json.loads(result.stdout)
+    assert report["n_images"] == 4 and set(report["plaques"]) == {"0.5", "0.7"}
+    assert report["wells"]["0.5"]["n_true"] == 48
+
+    result = invoke(
+        "evaluate", "counts", "--model", tiny_model, "--images", rendered / "images", "--counts", rendered / "counts.csv",
+        "--json", "--table", tmp_path / "wells.csv",
+    )
+    assert result.exit_code == 0, result.output
+    report = json.loads(result.stdout)
+    assert report["n_wells"] == 48
+    assert report["baseline"]["count"] == pytest.approx(config.training["mean_plaques_per_well"])
+    assert len(list(csv.DictReader((tmp_path / "wells.csv").open()))) == 48
+
+
+def _copy(rendered, tmp_path):
+    data = tmp_path / "data"
+    shutil.copytree(rendered, data)
+    return data
+
+
+def test_cli_bad_training_data(rendered, tmp_path):
+    data = _copy(rendered, tmp_path)
+    (data / "masks" / "plaques" / "000002.tif").unlink()
+    result = invoke("train", "--data", data, "--out", tmp_path / "m", "--epochs", 1, "--steps", 1)
+    assert result.exit_code == 1
+    assert "000002.tif: missing mask" in result.output and "Traceback" not in result.output
+    assert not (tmp_path / "m").exists()
+
+    data = _copy(rendered, tmp_path / "other")
+    tifffile.imwrite(data / "masks" / "wells" / "000001.tif", np.zeros((90, 128), np.uint8))
+    result = invoke("train", "--data", data, "--out", tmp_path / "m2", "--epochs", 1, "--steps", 1, "--batch-size", 4,
+                    "--patch", "64x64", "--val-fraction", 0)
+    assert result.exit_code == 1
+    assert "000001.tif: mask size 128x90 differs from image" in result.output
+
+    result = invoke("train", "--data", rendered, "--out", tmp_path / "m3", "--mix", "0.9,0.1")
+    assert result.exit_code == 1 and "--mix has 2 fractions for 1 datasets" in result.output
+
+
+def test_cli_bad_counts_and_images(rendered, tiny_model, tmp_path):
+    rows = (rendered / "counts.csv").read_text().splitlines()
+    unknown = tmp_path / "unknown.csv"
+    unknown.write_text("\n".join(rows[:3] + ["000000.png,5,1,F3,2"]) + "\n")
+    result = invoke("evaluate", "counts", "--model", tiny_model, "--images", rendered / "images", "--counts", unknown)
+    assert result.exit_code == 1
+    assert "unknown.csv, line 4: unknown well F3 at row 5, col 1" in result.output
+
+    missing = tmp_path / "missing.csv"
+    missing.write_text("\n".join(rows[:2] + ["nowhere.jpg,0,0,A4,3"]) + "\n")
+    result = invoke("evaluate", "counts", "--model", tiny_model, "--images", rendered / "images", "--counts", missing)
+    assert result.exit_code == 1 and "not found" in result.output and "nowhere.jpg" in result.output
+
+    broken = tmp_path / "broken.png"
+    broken.write_bytes(b"not an image")
+    good = rendered / "images" / "000000.png"
+    result = invoke("predict", good, broken, "--model", tiny_model, "--out", tmp_path / "pred")
+    assert result.exit_code == 1 and "broken.png: cannot read image" in result.output
+    assert not (tmp_path / "pred").exists()
+
+    result = invoke("predict", good, "--model", tmp_path / "no-model", "--out", tmp_path / "pred")
+    assert result.exit_code == 1 and "config.json: no such file" in result.output
