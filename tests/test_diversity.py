@@ -11,7 +11,12 @@ from platesynth.errors import EmptyDatasetError, ImageReadError, ParameterError
 from platesynth.io import read_image
 from platesynth.metrics import BrightnessVariability, PixelEntropy, grayscale, size_matched_entropy
 
-granatpy_metrics = pytest.importorskip("granatpy.metrics", reason="granatpy 0.1.3 is the reference implementation")
+
+@pytest.fixture(scope="module")
+def granatpy_metrics():
+    """granatpy 0.1.3's metrics module, the reference implementation (installed by ``make env-test``)."""
+    return pytest.importorskip("granatpy.metrics", reason="granatpy 0.1.3 (the reference) is not installed")
+
 
 PARITY = 1e-9
 
@@ -72,7 +77,7 @@ def test_four_distinct_values_give_two_bits_and_bins_merge_them():
 
 
 @pytest.mark.parametrize("bins", [256, 10])
-def test_parity_with_granatpy_rgb_rgba_gray(tmp_path, bins):
+def test_parity_with_granatpy_rgb_rgba_gray(tmp_path, bins, granatpy_metrics):
     rng = np.random.default_rng(1)
     images = [plate_like(rng, 30, 40) for _ in range(8)]
     images += [plate_like(rng, 30, 40, channels=4) for _ in range(3)]  # RGBA: alpha ignored
@@ -87,7 +92,7 @@ def test_parity_with_granatpy_rgb_rgba_gray(tmp_path, bins):
     assert abs(ours_var - granatpy_metrics.brightness_var(paths, None)) <= PARITY
 
 
-def test_parity_with_granatpy_mixed_sizes(tmp_path):
+def test_parity_with_granatpy_mixed_sizes(tmp_path, granatpy_metrics):
     rng = np.random.default_rng(2)
     shapes = [(30, 40), (60, 80), (15, 20), (33, 41), (30, 40), (90, 70)]
     paths = write_images(tmp_path, [plate_like(rng, h, w) for h, w in shapes])
@@ -102,7 +107,7 @@ def test_parity_with_granatpy_mixed_sizes(tmp_path):
     assert sized.entropy_map().shape == (25, 35)
 
 
-def test_parity_with_granatpy_on_real_plates(shared):
+def test_parity_with_granatpy_on_real_plates(shared, granatpy_metrics):
     plates = sorted(shared("data", "plaque12", "plates").glob("*.jpg"))[:3]
     paths = [str(p) for p in plates]
     size = (40, 50)  # (height, width); the plates are ~950 x 1200 and of several sizes
@@ -112,7 +117,7 @@ def test_parity_with_granatpy_on_real_plates(shared):
     assert abs(ours_var - granatpy_metrics.brightness_var(paths, size[::-1])) <= PARITY
 
 
-def test_counts_promote_past_255_images_and_match_granatpy(tmp_path):
+def test_counts_promote_past_255_images_and_match_granatpy(tmp_path, granatpy_metrics):
     rng = np.random.default_rng(3)
     images = [rng.integers(0, 6, (3, 4), dtype=np.uint8) * 40 for _ in range(300)]
     entropy = PixelEntropy()

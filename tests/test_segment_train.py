@@ -28,6 +28,15 @@ runner = CliRunner()
 TINY = ModelConfig(channels=(8, 12, 16), context_dilations=(2,), input_long_side=128)
 
 
+@pytest.fixture(autouse=True, scope="module")
+def _one_torch_thread():
+    """Several torch threads on a busy 2-core machine spin-wait each other (tens of times slower); tests use one."""
+    threads = torch.get_num_threads()
+    torch.set_num_threads(1)
+    yield
+    torch.set_num_threads(threads)
+
+
 def invoke(*args: str):
     return runner.invoke(app, [str(a) for a in args])
 
@@ -61,7 +70,7 @@ def test_loss_falls_on_rendered_images(rendered):
         optimizer.zero_grad()
         loss.backward()
         optimizer.step()
-        losses.append(float(loss))
+        losses.append(float(loss.detach()))
     assert losses[-1] < 0.6 * losses[0]
 
 
@@ -204,6 +213,7 @@ def test_cli_bad_training_data(rendered, tmp_path):
                     "--patch", "64x64", "--val-fraction", 0)
     assert result.exit_code == 1
     assert "000001.tif: mask size 128x90 differs from image" in result.output
+    assert not (tmp_path / "m2").exists()
 
     result = invoke("train", "--data", rendered, "--out", tmp_path / "m3", "--mix", "0.9,0.1")
     assert result.exit_code == 1 and "--mix has 2 fractions for 1 datasets" in result.output

@@ -290,7 +290,8 @@ def shade(
                         ink_g = w00 * ink[i, j, 1] + w01 * ink[i, j + 1, 1] + w10 * ink[i + 1, j, 1] + w11 * ink[i + 1, j + 1, 1]
                         ink_b = w00 * ink[i, j, 2] + w01 * ink[i, j + 1, 2] + w10 * ink[i + 1, j, 2] + w11 * ink[i + 1, j + 1, 2]
                 skirt_shade = 1.0 - 0.25 * _clip01((signed + skirt) / skirt)
-                plastic = transmittance * (1.0 + 0.04 * band - rim_dark * min(outlines, 1.0))
+                # the thick plastic between the wells passes less light than a well's thin bottom
+                plastic = (transmittance * (1.0 - disc) + 0.96 * disc) * (1.0 + 0.04 * band - rim_dark * min(outlines, 1.0))
                 plastic *= (1.0 - relief) * skirt_shade
                 # blots: soft smudges on the plate
                 blot_r = 1.0

@@ -124,8 +124,8 @@ def noise_grid(rng: np.random.Generator, shape: tuple[int, int], smooth: float, 
 @lru_cache(maxsize=1)
 def _gamma_lut(size: int = 4096) -> np.ndarray:
     """Display encoding indexed by ``sqrt(linear) * size``."""
-    root = np.linspace(0.0, 1.0, size + 1)
-    return ((root**2) ** (1.0 / 2.2)).astype(np.float32)
+    linear = np.linspace(0.0, 1.0, size + 1) ** 2
+    return np.where(linear <= 0.0031308, 12.92 * linear, 1.055 * linear ** (1 / 2.4) - 0.055).astype(np.float32)
 
 
 @lru_cache(maxsize=1)

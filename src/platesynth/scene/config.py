@@ -289,8 +289,8 @@ class StainConfig(Section):
     """The stained cell monolayer."""
 
     hue_deg: Dist = number([242, 288], 0.0, 360.0, "deg", "stain hue (crystal violet 240-290, neutral red 345-360)")
-    saturation: Dist = number([0.7, 1.0], 0.0, 1.0, "", "stain saturation at nominal density")
-    value: Dist = number([0.8, 0.92], 0.0, 1.0, "", "stain value (brightness) at nominal density")
+    saturation: Dist = number([0.9, 1.0], 0.0, 1.0, "", "stain saturation at nominal density")
+    value: Dist = number([0.9, 1.0], 0.0, 1.0, "", "stain value (brightness) at nominal density")
     density: Dist = number([0.9, 1.15], 0.0, 3.0, "", "plate-wide stain density relative to nominal")
     well_density_jitter: Dist = number([0.02, 0.08], 0.0, 0.5, "", "relative density change from well to well (sd)")
     unevenness: Dist = number([0.04, 0.12], 0.0, 1.0, "", "low-frequency density variation")
@@ -299,13 +299,13 @@ class StainConfig(Section):
     centre_elongation: Dist = number([1.0, 2.0], 1.0, 5.0, "", "aspect ratio of the dark centre")
     drying_detail: Dist = number([0.04, 0.12], 0.0, 1.0, "", "high-frequency drying texture")
     rim_clearing_mm: Dist = number([0.1, 0.6], 0.0, 5.0, "mm", "width of the paler band along the rim")
-    translucency: Dist = number([0.0, 0.04], 0.0, 1.0, "", "fraction of light passing un-absorbed")
+    translucency: Dist = number([0.0, 0.008], 0.0, 1.0, "", "fraction of light passing un-absorbed")
 
 
 class WellsConfig(Section):
     """Which wells hold what."""
 
-    emptied: float = probability(0.03, "chance a well holds no cells (clear), so no fixed pattern is learned")
+    emptied: float = probability(0.01, "chance a well holds no cells (clear), so no fixed pattern is learned")
 
 
 class PlaquesConfig(Section):
@@ -341,11 +341,11 @@ class ArtifactsConfig(Section):
 class LightingConfig(Section):
     """Light and exposure."""
 
-    exposure_ev: Dist = number([-0.45, 0.0], -3.0, 3.0, "EV", "exposure correction")
+    exposure_ev: Dist = number([-0.5, -0.05], -3.0, 3.0, "EV", "exposure correction")
     color_temperature_k: Dist = number([8000, 12000], 2500, 15000, "K",
                                        "colour temperature the camera's white balance leaves (higher: bluer)")
     vignetting: Dist = number([0.0, 0.15], 0.0, 1.0, "", "darkening at the image corners")
-    glare: Dist = number([0.0, 0.1], 0.0, 1.0, "", "strength of a soft glare spot")
+    glare: Dist = number([0.0, 0.04], 0.0, 1.0, "", "strength of a soft glare spot")
 
 
 class PostConfig(Section):

@@ -83,7 +83,7 @@ class TrainSummary:
     model_dir: Path
     epochs_done: int
     best_val_loss: float
-    history: list[dict[str, float]]
+    history: list[dict[str, float | None]]
     thresholds: dict[str, tuple[float, float]]
     resumed_from_epoch: int
 
@@ -138,7 +138,7 @@ def _check_model_dir(model_dir: Path, config: TrainConfig, overwrite: bool) -> b
     if saved == config and (model_dir / CHECKPOINT_NAME).is_file():
         return True
     if not overwrite and saved is not None and saved != config:
-        changed = [k for k in config.model_fields if getattr(saved, k) != getattr(config, k)]
+        changed = [k for k in TrainConfig.model_fields if getattr(saved, k) != getattr(config, k)]
         raise DatasetError(
             f"{model_dir}: holds a different training (differs in {', '.join(changed)}); use --overwrite to replace it"
         )
@@ -218,7 +218,7 @@ def train(
     overwrite : replace a different training found in ``model_dir``.
     device : ``"auto"`` (CUDA where available), ``"cpu"``, ``"cuda"``...
     progress : called after every step with ``{"epoch", "step", "steps", "loss"}``, and after every epoch with
-        ``{"epoch", "train_loss", "val_loss"}``.
+        ``{"epoch", "train_loss", "val_loss"}`` (``val_loss`` None without validation images).
 
     Raises
     ------
@@ -238,6 +238,10 @@ def train(
     train_items = [item for items in train_sets for item in items]
     sources = [number for number, items in enumerate(train_sets) for _ in items]
     val_items = [item for items in val_sets for item in items][: config.max_val_images]
+    # reads every item once before anything is written: a broken dataset leaves no model directory behind
+    baseline = mean_plaques_per_well(train_items)
+    for item in val_items:
+        load_item(item)
     resume = _check_model_dir(model_dir, config, overwrite)
     model_dir.mkdir(parents=True, exist_ok=True)
     write_json(model_dir / TRAIN_CONFIG_NAME, config.model_dump(mode="json"))
@@ -250,7 +254,7 @@ def train(
     scheduler = torch.optim.lr_scheduler.LambdaLR(
         optimizer, lambda step: 0.05 + 0.95 * 0.5 * (1 + math.cos(math.pi * min(step, total_steps) / total_steps))
     )
-    history: list[dict[str, float]] = []
+    history: list[dict[str, float | None]] = []
     best_val, start_epoch = math.inf, 0
     if resume:
         state = torch.load(model_dir / CHECKPOINT_NAME, map_location=torch_device, weights_only=False)
@@ -281,7 +285,7 @@ def train(
             if progress is not None:
                 progress({"epoch": epoch + 1, "step": step, "steps": config.steps_per_epoch, "loss": parts["total"]})
         val_loss = validation_loss(model, val_data, config, torch_device)
-        history.append({"epoch": epoch + 1, "train_loss": float(np.mean(losses)), "val_loss": val_loss})
+        history.append({"epoch": epoch + 1, "train_loss": float(np.mean(losses)), "val_loss": None if math.isnan(val_loss) else val_loss})
         if math.isnan(val_loss) or val_loss < best_val:
             best_val = val_loss if not math.isnan(val_loss) else best_val
             save_model(model, model_dir)
@@ -314,7 +318,7 @@ def train(
         "recipe": config.model_dump(mode="json", exclude={"data", "mix"}),
         "epochs_done": len(history),
         "best_val_loss": best_val if math.isfinite(best_val) else None,
-        "mean_plaques_per_well": mean_plaques_per_well(train_items),
+        "mean_plaques_per_well": baseline,
         "thresholds_tuned_on": len(val_items) if config.tune_thresholds else 0,
     }
     best.config.version = __version__

@@ -1,0 +1,125 @@
+"""Realism of the raster renderer's presets against the real 12-well plate photos.
+
+Renders ``--count`` images per preset (seeds 0..count-1) into a temporary folder and prints, for each preset and
+for the real set, the AlexNet Fréchet distance and kernel distance to the real photos, the naturalness factor and
+dNf = |nf_real - nf|, the pixel entropy (size-matched: mean over subsets as large as the smaller set, since entropy
+grows with the number of images) and the brightness variability, all from :func:`platesynth.metrics.dataset_metrics`.
+
+The real set is ``../shared/data/plaque12/plates`` (39 crops of ~1200x950 px). The renders are made at 1216x944
+(the crops' typical size and aspect); ``--compare-size`` resizes both sets (Lanczos) before measuring, e.g. to
+compare quickly at half size.
+
+Run: ``python benchmarks/realism_table.py`` (``--count 100`` is the issue's protocol; ``--count 20 --compare-size
+608x472`` takes a few minutes). Needs the AlexNet weights (``PLATESYNTH_WEIGHTS_DIR`` or ``../shared/weights``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+import tempfile
+import time
+import warnings
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+SHARED = Path(os.environ.get("PLATESYNTH_SHARED", ROOT.parent / "shared"))
+COLUMNS = ("fd_alexnet", "kid_alexnet", "nf", "dnf", "entropy", "brightness_var")
+
+
+def _size(text: str) -> tuple[int, int]:
+    width, height = (int(v) for v in text.lower().split("x"))
+    return width, height
+
+
+def _resized(image, size: tuple[int, int] | None):
+    from PIL import Image
+
+    image = Image.fromarray(image) if not isinstance(image, Image.Image) else image.convert("RGB")
+    return image if size is None else image.resize(size, Image.Resampling.LANCZOS)
+
+
+def _resized_reference(source: Path, size: tuple[int, int], target: Path) -> Path:
+    from PIL import Image
+
+    from platesynth.io import list_images
+
+    target.mkdir(parents=True, exist_ok=True)
+    for path in list_images(source):
+        with Image.open(path) as image:
+            _resized(image, size).save(target / f"{path.stem}.png")
+    return target
+
+
+def _render_preset(preset: str, count: int, size: tuple[int, int], compare: tuple[int, int] | None, folder: Path):
+    from platesynth.render import render
+    from platesynth.scene import load_config, sample_scene
+
+    config = load_config(preset)
+    folder.mkdir(parents=True, exist_ok=True)
+    start = time.perf_counter()
+    for seed in range(count):
+        _resized(render(sample_scene(config, seed), size).image, compare).save(folder / f"{preset}_{seed:04d}.png")
+    return time.perf_counter() - start
+
+
+def main(argv: list[str] | None = None) -> None:
+    """Print the realism table."""
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--count", type=int, default=100, help="images per preset")
+    parser.add_argument("--size", type=_size, default=(1216, 944), help="render size WIDTHxHEIGHT")
+    parser.add_argument("--presets", default="high,medium,low")
+    parser.add_argument("--reference", type=Path, default=SHARED / "data" / "plaque12" / "plates")
+    parser.add_argument("--compare-size", type=_size, default=None, help="resize renders and photos to WIDTHxHEIGHT")
+    parser.add_argument("--keep", type=Path, default=None, help="keep the renders in this folder")
+    args = parser.parse_args(argv)
+    if not args.reference.is_dir():
+        sys.exit(f"{args.reference}: no such folder (set PLATESYNTH_SHARED to the shared material)")
+    os.environ.setdefault("PLATESYNTH_WEIGHTS_DIR", str(SHARED / "weights"))
+
+    from platesynth.io import list_images
+    from platesynth.metrics import MetricSkippedWarning, dataset_metrics, size_matched_entropy
+
+    warnings.simplefilter("ignore", MetricSkippedWarning)  # no Inception weights offline: AlexNet only
+    with tempfile.TemporaryDirectory() as tmp:
+        work = args.keep or Path(tmp)
+        reference = args.reference
+        if args.compare_size:
+            reference = _resized_reference(reference, args.compare_size, Path(tmp) / "reference")
+        n_real = len(list_images(reference))
+        rows: dict[str, dict[str, float]] = {}
+        real_row: dict[str, float] = {}
+        for preset in args.presets.split(","):
+            folder = work / preset
+            seconds = _render_preset(preset, args.count, args.size, args.compare_size, folder)
+            metrics = dataset_metrics(folder, reference)
+            subset = min(args.count, n_real)
+            shape = tuple(metrics["size"])
+            rows[preset] = {
+                "fd_alexnet": metrics["fd_alexnet"],
+                "kid_alexnet": metrics["kid_alexnet"],
+                "nf": metrics["nf_mean"],
+                "dnf": metrics["dnf"],
+                "entropy": size_matched_entropy(list_images(folder), subset, size=shape),
+                "brightness_var": metrics["brightness_variability"],
+            }
+            real_row = {
+                "fd_alexnet": 0.0,
+                "kid_alexnet": 0.0,
+                "nf": metrics["nf_mean_reference"],
+                "dnf": 0.0,
+                "entropy": size_matched_entropy(list_images(reference), subset, size=shape),
+                "brightness_var": metrics["brightness_variability_reference"],
+            }
+            print(f"[{preset}: {args.count} renders at {args.size[0]}x{args.size[1]} in {seconds:.0f} s]", file=sys.stderr)
+    compared = f", both resized to {args.compare_size[0]}x{args.compare_size[1]}" if args.compare_size else ""
+    print(f"realism against {args.reference} ({n_real} images); {args.count} renders per preset at "
+          f"{args.size[0]}x{args.size[1]}{compared}; entropy over subsets of {min(args.count, n_real)} images")
+    print(f"{'set':10s}" + "".join(f"{c:>16s}" for c in COLUMNS))
+    for name, row in [*rows.items(), ("real", real_row)]:
+        print(f"{name:10s}" + "".join(f"{row[c]:16.4f}" for c in COLUMNS))
+
+
+if __name__ == "__main__":
+    main()
