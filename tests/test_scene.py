@@ -74,12 +74,18 @@ def test_dilution_series_across_columns():
 def test_lysed_wells_hold_no_plaques_and_emptied_wells_no_cells():
     overrides = {"plaques.negative_plate": 0.0, "plaques.top_count": 5000, "plaques.lysis_count": 1000,
                  "wells.emptied": 0.3}
-    scene = sample_scene(load_config("high", overrides=overrides), 4)
-    lysed = {w.id for w in scene.wells if w.lysed}
-    emptied = {w.id for w in scene.wells if w.emptied}
-    assert lysed and emptied and not lysed & emptied
-    assert all(w.expected_plaques > 1000 for w in scene.wells if w.lysed)
-    assert not {p.well for p in scene.plaques} & (lysed | emptied)
+    config = load_config("high", overrides=overrides)
+    n_lysed = n_emptied = 0
+    for seed in range(5):
+        scene = sample_scene(config, seed)
+        lysed = {w.id for w in scene.wells if w.lysed}
+        emptied = {w.id for w in scene.wells if w.emptied}
+        assert not lysed & emptied
+        assert all(w.expected_plaques > 1000 for w in scene.wells if w.lysed)
+        assert all(w.lysed for w in scene.wells if w.expected_plaques > 1000 and not w.emptied)
+        assert not {p.well for p in scene.plaques} & (lysed | emptied)
+        n_lysed, n_emptied = n_lysed + len(lysed), n_emptied + len(emptied)
+    assert n_lysed > 5 and n_emptied > 5
 
 
 def test_from_below_mirrors_the_image_grid():
@@ -125,7 +131,9 @@ def test_max_overlap_zero_keeps_plaques_apart():
         ({"plate.format": 7}, ["plate.format", "6, 12, 24, 96"]),
         ({"plate.format": [6, 96]}, ["plate.format", "choice"]),
         ({"background.kind": "moon"}, ["background.kind", "lightbox, desk"]),
-        ({"plaques.radius_mm": [2.0, 1.0]}, ["plaques.radius_mm", "above high"]),
+        ({"plaques.radius_mm": [2.0, 1.0]}, ["plaques.radius_mm", "low <= high"]),
+        ({"camera.plate_fill": {"mixture": [[1.1, 1.2], [0.9]]}}, ["camera.plate_fill", "[low, high] ranges"]),
+        ({"camera.plate_fill": {"mixture": [[1.1, 1.2], [0.9, 3.0]]}}, ["camera.plate_fill", "3 is out of range"]),
         ({"plaques.radius_mm": {"loguniform": [0.0, 1.0]}}, ["plaques.radius_mm", "low > 0"]),
     ],
 )
@@ -181,6 +189,11 @@ def test_distributions_sample_within_their_support():
     assert max(normal) == 10.0 and min(normal) >= 0.0
     choice = Dist.model_validate({"choice": [6, 96], "weights": [0, 1]})
     assert {choice.sample(rng, (6, 96), integer=True) for _ in range(20)} == {96}
+    mixture = Dist.model_validate({"mixture": [[1, 2], [5, 6]], "weights": [1, 3]})
+    drawn = np.array([mixture.sample(rng, bounds) for _ in range(400)])
+    assert np.all(((drawn >= 1) & (drawn <= 2)) | ((drawn >= 5) & (drawn <= 6)))
+    assert 0.65 < (drawn >= 5).mean() < 0.85
+    assert Dist.model_validate(mixture.model_dump()) == mixture
 
 
 def test_parameter_table_is_complete_and_generated_from_the_model():

@@ -33,21 +33,33 @@ __all__ = ["BrightnessVariability", "PixelEntropy", "grayscale", "size_matched_e
 ImageOrPath = np.ndarray | str | os.PathLike
 
 
+_BATCH_BYTES = 32 << 20
+"""Gray images are buffered up to this many bytes (at most 32 images) and counted in one pass over the histograms."""
+
+
 @numba.njit(cache=True, nogil=True)
-def _count_values(counts: np.ndarray, gray: np.ndarray, bin_of_value: np.ndarray) -> None:
-    """``counts[bin_of_value[gray[i]], i] += 1`` for every position ``i`` of the flat image ``gray``."""
-    n_positions = gray.size
+def _count_values(counts: np.ndarray, grays: np.ndarray, bin_of_value: np.ndarray) -> None:
+    """``counts[i, bin_of_value[grays[k, i]]] += 1`` for every image ``k`` and position ``i``; position-major counts.
+
+    Positions outside, images inside: each position's histogram stays in cache while the whole batch is counted.
+    """
+    n_images, n_positions = grays.shape
+    bins = counts.size // n_positions
     for position in range(n_positions):
-        counts[bin_of_value[gray[position]] * n_positions + position] += 1
+        start = position * bins
+        for image in range(n_images):
+            counts[start + bin_of_value[grays[image, position]]] += 1
 
 
 @numba.njit(cache=True, nogil=True)
 def _sum_count_log_count(counts: np.ndarray, n_positions: int, count_log_count: np.ndarray) -> np.ndarray:
-    """Per position, the sum over bins of ``c * log2(c)`` (looked up in ``count_log_count``), bin-major ``counts``."""
+    """Per position, the sum over its bins of ``c * log2(c)`` (looked up in ``count_log_count``)."""
+    bins = counts.size // n_positions
     total = np.zeros(n_positions, dtype=np.float64)
-    for start in range(0, counts.size, n_positions):
-        for position in range(n_positions):
-            count = counts[start + position]
+    for position in range(n_positions):
+        start = position * bins
+        for bin_index in range(bins):
+            count = counts[start + bin_index]
             if count > 1:
                 total[position] += count_log_count[count]
     return total
@@ -128,8 +140,9 @@ class PixelEntropy(_PerPositionMetric):
     """Mean over pixel positions of the Shannon entropy (bits) of the grayscale values at that position.
 
     Equals granatpy 0.1.3 ``dataset_entropy(paths, size=(width, height), bins=bins)``. The state is one histogram
-    per position, ``bins * height * width`` counts whose integer type grows with the number of images (uint8 up
-    to 255 images, then uint16 up to 65535, ...): 10,000 images of 1024x768 need 400 MB.
+    per position, ``height * width * bins`` counts whose integer type grows with the number of images (uint8 up
+    to 255 images, then uint16 up to 65535, ...): 10,000 images of 1024x768 need 400 MB. Images are counted in
+    batches (up to 32 buffered gray images, 32 MB), each in one pass over the histograms.
 
     The entropy at a position is at most ``log2(min(n_images, bins))``, so it grows with the number of images:
     compare datasets of equal size, or use :func:`size_matched_entropy`.
@@ -161,28 +174,42 @@ class PixelEntropy(_PerPositionMetric):
 
     def reset(self) -> None:
         super().reset()
-        self._counts: np.ndarray | None = None  # (bins, height * width), flattened
+        self._counts: np.ndarray | None = None  # (height * width, bins), flattened
+        self._pending: np.ndarray | None = None  # (batch, height * width) gray images not counted yet
+        self._n_pending = 0
 
     def update(self, image: np.ndarray) -> None:
         """Add one image (``(H, W)``, ``(H, W, 3)`` or ``(H, W, 4)``; uint8 or uint16)."""
         gray = self._gray(image)
-        n_positions = gray.size
         if self._counts is None:
-            self._counts = np.zeros(self.bins * n_positions, dtype=np.uint8)
-        if self.n_images + 1 > np.iinfo(self._counts.dtype).max:
-            wider = np.promote_types(self._counts.dtype, np.min_scalar_type(self.n_images + 1))
-            self._counts = self._counts.astype(wider)
-        _count_values(self._counts, gray.ravel(), self._bin_of_value)
+            self._counts = np.zeros(gray.size * self.bins, dtype=np.uint8)
+            batch = max(1, min(32, _BATCH_BYTES // gray.size))
+            self._pending = np.empty((batch, gray.size), dtype=np.uint8)
+        self._pending[self._n_pending] = gray.ravel()
+        self._n_pending += 1
         self.n_images += 1
+        if self._n_pending == len(self._pending):
+            self._count_pending()
+
+    def _count_pending(self) -> None:
+        if self._n_pending == 0:
+            return
+        if self.n_images > np.iinfo(self._counts.dtype).max:
+            wider = np.promote_types(self._counts.dtype, np.min_scalar_type(self.n_images))
+            self._counts = self._counts.astype(wider)
+        _count_values(self._counts, self._pending[: self._n_pending], self._bin_of_value)
+        self._n_pending = 0
 
     def histograms(self) -> np.ndarray:
         """Per-position histograms so far, ``(bins, height, width)`` counts (a view of the state)."""
         self._check_not_empty()
-        return self._counts.reshape(self.bins, *self.size)
+        self._count_pending()
+        return np.moveaxis(self._counts.reshape(*self.size, self.bins), -1, 0)
 
     def entropy_map(self) -> np.ndarray:
         """Entropy in bits at every pixel position, ``(height, width)`` float64."""
         self._check_not_empty()
+        self._count_pending()
         n = self.n_images
         count_values = np.arange(n + 1, dtype=np.float64)
         count_log_count = count_values * np.log2(np.maximum(count_values, 1.0))

@@ -89,7 +89,7 @@ def draw_plaques(hinv, params, fourier, boxes, pixel_mm, from_below, top_radius,
             amplitude += abs(fourier[p, k, 0]) + abs(fourier[p, k, 1])
         width = max(edge, pixel_mm)
         reach = radius * (1.0 + amplitude) + 1.5 * width
-        noise_dx = 37.0 * p
+        noise_dx = 7.37 * p
         y0, y1, x0, x1 = boxes[p, 0], boxes[p, 1], boxes[p, 2], boxes[p, 3]
         for y in range(y0, y1):
             for x in range(x0, x1):
@@ -119,14 +119,16 @@ def draw_plaques(hinv, params, fourier, boxes, pixel_mm, from_below, top_radius,
                         in_well = tu * tu + tv * tv < top_radius * top_radius
                     if in_well:
                         ids[y, x] = p + 1
-                fray = _tile(fuzz_tile, (u + noise_dx) / fuzz_cell_mm, v / fuzz_cell_mm)
-                t = 0.5 - signed / (1.5 * width) + 0.3 * fray
+                # radial fibres: noise that varies quickly around the plaque and slowly along its radius
+                around = math.atan2(dv, du) * (fuzz_tile.shape[1] / (2.0 * math.pi))
+                fray = _tile(fuzz_tile, around, dist / fuzz_cell_mm + noise_dx)
+                t = 0.5 - signed / (1.5 * width) + 0.2 * fray
                 if t <= 0.0:
                     continue
                 if t > 1.0:
                     t = 1.0
                 inner = dist / (radius * outline)
-                c = clearness * t * t * (3.0 - 2.0 * t) * (1.0 - 0.12 * math.exp(-3.0 * inner * inner))
+                c = clearness * t * t * (3.0 - 2.0 * t) * (1.0 - 0.02 * math.exp(-3.0 * inner * inner))
                 clear[y, x] = 1.0 - (1.0 - clear[y, x]) * (1.0 - c)
 
 
@@ -323,14 +325,16 @@ def shade(
                     fine = _tile(fine_tile, (u + wells[k, W_NOISE_X]) / fine_cell_mm, (v + wells[k, W_NOISE_Y]) / fine_cell_mm)
                     density *= max(1.0 + 2.0 * wells[k, W_DRYING] * fine, 0.0)
                     if wells[k, W_LYSED] > 0.5:
+                        # what is left of a lysed layer: a cloud around the centre and a network of strands
                         fibre = _grid(fibre_grid, u / fibre_cell_mm, v / fibre_cell_mm)
-                        ridge = (1.0 - min(abs(fibre), 1.0)) ** 3
-                        remnant = _clip01(0.1 + 0.45 * gradient * (0.6 + 0.8 * ridge) + 0.25 * fine * ridge)
-                        density *= 0.55 * remnant * (1.0 - 0.6 * math.exp(-max(radius - dist, 0.0) / 2.0))
+                        strands = (1.0 - min(abs(fibre), 1.0)) ** 2 * (0.6 + 0.4 * fine)
+                        cloud = 0.55 * gradient + 0.25 * _grid(low_grid, u / low_cell_mm + 17.0, v / low_cell_mm)
+                        remnant = _clip01(0.04 + cloud * (0.4 + 0.6 * strands) + 0.15 * strands)
+                        density *= 0.6 * remnant * (1.0 - 0.7 * math.exp(-max(radius - dist, 0.0) / 1.5))
                     c_plaque = clear[y, x]
                     if c_plaque > 0.0:
                         residual = _tile(residual_tile, (u + wells[k, W_NOISE_Y]) / residual_cell_mm, (v + wells[k, W_NOISE_X]) / residual_cell_mm)
-                        residual = min(max(0.08 + 0.05 * residual, 0.0), 0.3)
+                        residual = min(max(0.03 + 0.03 * residual, 0.0), 0.2)
                         density *= 1.0 - c_plaque * (1.0 - residual)
                     density = density * (1.0 - scratched[y, x]) + specks[y, x]
                     layer_r = translucency + (1.0 - translucency) * math.exp(-density * absorbance[0])

@@ -271,16 +271,16 @@ def render_raster(scene: Scene, size: tuple[int, int] = (1024, 768)) -> RenderRe
     residual_tile = noise_grid(rng(5), (128, 128), 1.2, periodic=True)
     clear = np.zeros((height, width), dtype=np.float32)
     plaque_ids = np.zeros((height, width), dtype=np.uint16)
-    _draw_plaques(scene, view, wells, top_centres, top_radius, fine_tile, fine_cell, clear, plaque_ids)
+    _draw_plaques(scene, view, wells, top_centres, top_radius, fine_tile, 0.15, clear, plaque_ids)
     scratched = np.zeros((height, width), dtype=np.float32)
     specks = np.zeros((height, width), dtype=np.float32)
     _draw_artifacts(scene, view, scratched, specks)
 
     low_cell = stain.unevenness_scale_mm / 2.0
     low_grid = noise_grid(rng(1), (int(plate.width_mm / low_cell) + 3, int(plate.length_mm / low_cell) + 3), 1.5)
-    fibre_cell = 0.15
+    fibre_cell = 0.25
     if any(w.lysed for w in wells):
-        fibre_grid = noise_grid(rng(2), (int(plate.width_mm / fibre_cell) + 3, int(plate.length_mm / fibre_cell) + 3), 1.2)
+        fibre_grid = noise_grid(rng(2), (int(plate.width_mm / fibre_cell) + 3, int(plate.length_mm / fibre_cell) + 3), 2.0)
     else:
         fibre_grid = np.zeros((2, 2), dtype=np.float32)
     desk_cell_px = 8.0 * view.px_per_mm

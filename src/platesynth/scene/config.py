@@ -4,8 +4,9 @@ A configuration is a nested mapping ``section.parameter -> value``. A numeric pa
 
 * a number: always that value;
 * ``[low, high]``: uniform between the two;
-* ``{loguniform: [low, high]}``, ``{normal: [mean, sd]}`` (clipped to the valid range) or
-  ``{choice: [a, b, ...], weights: [...]}``.
+* ``{loguniform: [low, high]}``, ``{normal: [mean, sd]}`` (clipped to the valid range),
+  ``{choice: [a, b, ...], weights: [...]}`` or ``{mixture: [[low, high], [low, high], ...], weights: [...]}``
+  (uniform within one of several ranges).
 
 A probability is a number in [0, 1]; a category is a name or a mapping ``{name: weight}``.
 Each parameter's name, type, unit, valid range, default and description live in its field below;
@@ -36,7 +37,7 @@ from platesynth.errors import ParameterError
 
 PRESET_DIR = Path(__file__).parent / "presets"
 
-_DIST_KINDS = ("uniform", "loguniform", "normal", "choice")
+_DIST_KINDS = ("uniform", "loguniform", "normal", "choice", "mixture")
 
 
 def _is_number(value: Any) -> bool:
@@ -48,8 +49,8 @@ class Dist(BaseModel):
 
     model_config = ConfigDict(frozen=True, extra="forbid")
 
-    kind: Literal["const", "uniform", "loguniform", "normal", "choice"]
-    values: tuple[float, ...]
+    kind: Literal["const", "uniform", "loguniform", "normal", "choice", "mixture"]
+    values: tuple[float, ...]  # mixture: low, high of each range in turn
     weights: tuple[float, ...] | None = None
 
     @model_validator(mode="before")
@@ -71,6 +72,13 @@ class Dist(BaseModel):
                 raise ValueError(f"expected one of {', '.join(_DIST_KINDS)} (with 'weights' for choice), got {sorted(data)}")
             kind = kinds[0]
             values = data[kind]
+            if kind == "mixture":
+                ranges = values if isinstance(values, (list, tuple)) else None
+                if not ranges or not all(
+                    isinstance(r, (list, tuple)) and len(r) == 2 and all(_is_number(v) for v in r) for r in ranges
+                ):
+                    raise ValueError(f"mixture needs a list of [low, high] ranges, got {values!r}")
+                values = [v for r in ranges for v in r]
             if not isinstance(values, (list, tuple)) or not values or not all(_is_number(v) for v in values):
                 raise ValueError(f"{kind} needs a list of numbers, got {values!r}")
             out: dict[str, Any] = {"kind": kind, "values": tuple(float(v) for v in values)}
@@ -88,17 +96,19 @@ class Dist(BaseModel):
             raise ValueError("a constant has one value")
         if self.kind in ("uniform", "loguniform", "normal") and n != 2:
             raise ValueError(f"{self.kind} needs two numbers")
-        if self.kind in ("uniform", "loguniform") and self.values[0] > self.values[1]:
-            raise ValueError(f"range low {self.values[0]:g} is above high {self.values[1]:g}")
+        if self.kind in ("uniform", "loguniform", "mixture"):
+            if n % 2 or any(lo > hi for lo, hi in zip(self.values[::2], self.values[1::2])):
+                raise ValueError(f"each range needs low <= high, got {list(self.values)}")
         if self.kind == "loguniform" and self.values[0] <= 0:
             raise ValueError("loguniform needs low > 0")
         if self.kind == "normal" and self.values[1] < 0:
             raise ValueError("normal needs sd >= 0")
         if self.weights is not None:
-            if self.kind != "choice":
-                raise ValueError("weights belong to choice only")
-            if len(self.weights) != n or min(self.weights) < 0 or sum(self.weights) <= 0:
-                raise ValueError("choice weights must be as many as the values, non-negative, not all zero")
+            if self.kind not in ("choice", "mixture"):
+                raise ValueError("weights belong to choice and mixture only")
+            options = n // 2 if self.kind == "mixture" else n
+            if len(self.weights) != options or min(self.weights) < 0 or sum(self.weights) <= 0:
+                raise ValueError(f"{self.kind} needs one non-negative weight per option, not all zero")
         return self
 
     @model_serializer
@@ -107,7 +117,11 @@ class Dist(BaseModel):
             return _plain(self.values[0])
         if self.kind == "uniform":
             return [_plain(v) for v in self.values]
-        out: dict[str, Any] = {self.kind: [_plain(v) for v in self.values]}
+        if self.kind == "mixture":
+            ranges: list[Any] = [[_plain(lo), _plain(hi)] for lo, hi in zip(self.values[::2], self.values[1::2])]
+            out: dict[str, Any] = {"mixture": ranges}
+        else:
+            out = {self.kind: [_plain(v) for v in self.values]}
         if self.weights is not None:
             out["weights"] = list(self.weights)
         return out
@@ -126,6 +140,10 @@ class Dist(BaseModel):
             value = math.exp(rng.uniform(math.log(self.values[0]), math.log(self.values[1])))
         elif self.kind == "normal":
             value = rng.normal(*self.values)
+        elif self.kind == "mixture":
+            p = None if self.weights is None else np.asarray(self.weights) / sum(self.weights)
+            index = int(rng.choice(len(self.values) // 2, p=p))
+            value = rng.uniform(self.values[2 * index], self.values[2 * index + 1])
         else:
             p = None if self.weights is None else np.asarray(self.weights) / sum(self.weights)
             value = self.values[int(rng.choice(len(self.values), p=p))]
@@ -255,7 +273,7 @@ class PlateConfig(Section):
     transmittance: Dist = number([0.72, 0.85], 0.3, 1.0, "", "light passing the plastic between wells")
     tint: Dist = number([0.0, 0.04], 0.0, 0.3, "", "blue tint of the plastic (0 = neutral)")
     rim_darkness: Dist = number([0.25, 0.45], 0.0, 1.0, "", "darkness of the well-wall outlines")
-    label_strength: Dist = number([0.25, 0.5], 0.0, 1.0, "", "contrast of the embossed labels and rings")
+    label_strength: Dist = number([0.35, 0.7], 0.0, 1.0, "", "contrast of the embossed labels and rings")
 
 
 class CameraConfig(Section):
@@ -267,7 +285,7 @@ class CameraConfig(Section):
     tilt_deg: Dist = number([0.0, 2.0], 0.0, 15.0, "deg", "tilt of the plate away from the camera axis")
     offset: Dist = number({"normal": [0.0, 0.012]}, -0.2, 0.2, "image", "offset of the plate centre, per axis")
     distance_mm: Dist = number([300, 500], 100, 2000, "mm", "camera distance (sets the parallax of the walls)")
-    defocus_px: Dist = number([0.3, 0.9], 0.0, 5.0, "px", "optical blur at 1024 px image width")
+    defocus_px: Dist = number([0.0, 0.6], 0.0, 5.0, "px", "optical blur at 1024 px image width")
 
 
 class BackgroundConfig(Section):
@@ -275,7 +293,7 @@ class BackgroundConfig(Section):
 
     kind: Categorical = category("lightbox", ("lightbox", "desk"), "a light box under the plate, or a desk")
     brightness: Dist = number([0.88, 1.0], 0.0, 1.0, "", "brightness of the light box panel or the desk")
-    desk_gray: Dist = number([0.12, 0.35], 0.0, 1.0, "", "grey level of the desk (or what surrounds the light box)")
+    desk_gray: Dist = number([0.03, 0.2], 0.0, 1.0, "", "grey level of the desk (or what surrounds the light box)")
     texture: Dist = number([0.0, 0.05], 0.0, 0.5, "", "amplitude of the desk's surface texture")
     ruler: float = probability(0.0, "chance of a ruler along the light box's edges")
     panel_margin_x_mm: Dist = number([40, 120], -50, 300, "mm",
@@ -297,7 +315,7 @@ class StainConfig(Section):
     unevenness_scale_mm: Dist = number([2.0, 6.0], 0.5, 30.0, "mm", "size of low-frequency blotches")
     centre_gradient: Dist = number([0.0, 0.15], 0.0, 1.0, "", "extra density of the elongated dark centre")
     centre_elongation: Dist = number([1.0, 2.0], 1.0, 5.0, "", "aspect ratio of the dark centre")
-    drying_detail: Dist = number([0.04, 0.12], 0.0, 1.0, "", "high-frequency drying texture")
+    drying_detail: Dist = number([0.06, 0.16], 0.0, 1.0, "", "high-frequency drying texture")
     rim_clearing_mm: Dist = number([0.1, 0.6], 0.0, 5.0, "mm", "width of the paler band along the rim")
     translucency: Dist = number([0.0, 0.008], 0.0, 1.0, "", "fraction of light passing un-absorbed")
 
@@ -321,7 +339,7 @@ class PlaquesConfig(Section):
     radius_spread: Dist = number([0.2, 0.45], 0.0, 2.0, "", "sd of log radius within the plate")
     irregularity: Dist = number([0.02, 0.08], 0.0, 0.5, "", "amplitude of the outline's Fourier harmonics")
     softness: Dist = number([0.2, 0.45], 0.0, 2.0, "", "width of the fuzzy edge, fraction of the radius")
-    clearness: Dist = number([0.75, 0.95], 0.0, 1.0, "", "fraction of stain removed inside a plaque")
+    clearness: Dist = number([0.95, 1.0], 0.0, 1.0, "", "fraction of stain removed inside a plaque")
     edge_bias: Dist = number([0.0, 0.3], 0.0, 1.0, "", "tendency of plaques to lie near the well's rim")
     max_overlap: Dist = number(1.0, 0.0, 1.0, "", "largest overlap of two plaques, fraction of the smaller radius")
 
@@ -341,7 +359,7 @@ class ArtifactsConfig(Section):
 class LightingConfig(Section):
     """Light and exposure."""
 
-    exposure_ev: Dist = number([-0.5, -0.05], -3.0, 3.0, "EV", "exposure correction")
+    exposure_ev: Dist = number([-0.55, -0.1], -3.0, 3.0, "EV", "exposure correction")
     color_temperature_k: Dist = number([8000, 12000], 2500, 15000, "K",
                                        "colour temperature the camera's white balance leaves (higher: bluer)")
     vignetting: Dist = number([0.0, 0.15], 0.0, 1.0, "", "darkening at the image corners")

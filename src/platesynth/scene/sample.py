@@ -147,7 +147,7 @@ def sample_scene(config: SceneConfig, seed: int) -> Scene:
         texture=texture,
         ruler=ruler,
         panel_mm=_light_panel(rng, plate, margins, below),
-        frame_mm=rng.uniform(8.0, 20.0),
+        frame_mm=rng.uniform(0.0, 15.0),
     )
 
     stain = Stain(

@@ -148,7 +148,8 @@ def plaques_group(material: bpy.types.Material, harmonics: int) -> bpy.types.Nod
     Each point carries ``radius``, ``softness``, ``layer`` (drawing order), ``well_center`` and the outline
     coefficients ``fourier_a{k}``/``fourier_b{k}`` for ``k = 2 .. harmonics + 1``; the outline is
     ``r(t) = radius * (1 + sum_k a_k cos(k t) + b_k sin(k t))`` with ``t`` the angle in plate coordinates
-    (y down), grown by ``Margin * softness * radius`` (the fuzzy edge outside the outline; 0 for the masks).
+    (y down). With ``Fringe`` on, each plaque is instead a ring from its outline out to the outline grown by
+    ``Margin * softness * radius``: the part of the fuzzy edge outside the outline (image pass only).
     Points beyond the well's radius are pulled back onto its circle. Discs are stacked ``Layer Step`` apart
     (negative where the camera looks from below), starting ``Layer Offset`` steps above ``Floor Height``.
     """
@@ -160,6 +161,7 @@ def plaques_group(material: bpy.types.Material, harmonics: int) -> bpy.types.Nod
             ("Floor Height", "NodeSocketFloat", 0.0),
             ("Layer Step", "NodeSocketFloat", LAYER_STEP_MM),
             ("Layer Offset", "NodeSocketFloat", 0.0),
+            ("Fringe", "NodeSocketBool", False),
             ("Margin", "NodeSocketFloat", 0.0),
             ("Radius Scale", "NodeSocketFloat", 1.0),
             ("Irregularity Scale", "NodeSocketFloat", 1.0),
@@ -169,8 +171,15 @@ def plaques_group(material: bpy.types.Material, harmonics: int) -> bpy.types.Nod
     points = _store(group, output(group_in, "Geometry"), "center", position, "FLOAT_VECTOR")
     disc = add(group, "GeometryNodeMeshCircle", fill_type="TRIANGLE_FAN")
     feed(group, disc, Vertices=output(group_in, "Segments"), Radius=1.0)
+    # the fringe: a ring from radius 1 (the outline) to 2 (grown by the margin) -- not over the disc again
+    circle = add(group, "GeometryNodeMeshCircle", fill_type="NONE")
+    feed(group, circle, Vertices=output(group_in, "Segments"), Radius=1.0)
+    ring = add(group, "GeometryNodeExtrudeMesh", mode="EDGES")
+    feed(group, ring, Mesh=circle, Offset=output(add(group, "GeometryNodeInputPosition"), "Position"), Offset_Scale=1.0)
+    shape = add(group, "GeometryNodeSwitch", input_type="GEOMETRY")
+    feed(group, shape, Switch=output(group_in, "Fringe"), **{"False": disc, "True": output(ring, "Mesh")})
     radius = math(group, "MULTIPLY", _named(group, "radius"), output(group_in, "Radius Scale"))
-    instances = feed(group, add(group, "GeometryNodeInstanceOnPoints"), Points=points, Instance=disc, Scale=radius)
+    instances = feed(group, add(group, "GeometryNodeInstanceOnPoints"), Points=points, Instance=shape, Scale=radius)
     realized = feed(group, add(group, "GeometryNodeRealizeInstances"), Geometry=instances)
 
     # the outline: scale each rim point's offset from the centre by the Fourier factor at its angle
@@ -178,7 +187,8 @@ def plaques_group(material: bpy.types.Material, harmonics: int) -> bpy.types.Nod
     local = vector_math(group, "SUBTRACT", position, center)
     local_xyz = _xyz(group, local)
     angle = math(group, "ARCTAN2", math(group, "MULTIPLY", output(local_xyz, "Y"), -1.0), output(local_xyz, "X"))
-    factor: Any = math(group, "MULTIPLY", output(group_in, "Margin"), _named(group, "softness"))
+    outer = math(group, "GREATER_THAN", math(group, "DIVIDE", output(vector_math(group, "LENGTH", local), "Value"), radius), 1.5)
+    factor: Any = math(group, "MULTIPLY", math(group, "MULTIPLY", output(group_in, "Margin"), _named(group, "softness")), outer)
     factor = math(group, "ADD", factor, 1.0)
     for k in range(2, harmonics + 2):
         kt = math(group, "MULTIPLY", angle, float(k))

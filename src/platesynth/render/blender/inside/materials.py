@@ -37,8 +37,8 @@ PLATE_STAIN_INPUTS = ("Unevenness", "Unevenness Scale", "Centre Elongation", "Ri
 MASK_AOVS = ("well_id", "plaque_id")
 """Shader AOVs of the mask pass: each holds the integer id of the well / plaque seen in the pixel (0: none)."""
 
-_NOISE_SD = {0.0: 0.1217, 2.0: 0.0813, 6.0: 0.0722}
-"""Standard deviation of Blender's Noise Texture factor (mean 0.5) by detail, measured on a large plane."""
+_NOISE_SD = 0.123
+"""Standard deviation of Blender's 3-D Noise Texture factor (detail 0, mean 0.5), measured on a large plane."""
 
 
 def _new_material(name: str) -> tuple[bpy.types.Material, bpy.types.NodeTree, bpy.types.Node]:
@@ -66,13 +66,27 @@ def _rgb(tree: bpy.types.NodeTree, name: str, rgb: tuple[float, float, float]) -
     return node.outputs[0]
 
 
-def _unit_noise(tree: bpy.types.NodeTree, vector: Any, cell_mm: Any, w: Any, detail: float = 0.0) -> bpy.types.Node:
+def _seeded(tree: bpy.types.NodeTree, vector: Any, seed: Any) -> bpy.types.NodeSocket:
+    """``vector`` moved far away by ``seed``: a different pattern of the same texture per seed."""
+    shift = feed(tree, add(tree, "ShaderNodeCombineXYZ"), X=math(tree, "MULTIPLY", seed, 7.31), Y=math(tree, "MULTIPLY", seed, 3.17))
+    return output(vector_math(tree, "ADD", vector, shift), "Vector")
+
+
+def _unit_noise(tree: bpy.types.NodeTree, vector: Any, cell_mm: Any, seed: Any) -> bpy.types.NodeSocket:
     """Smooth noise with mean 0 and standard deviation 1, blotches about ``cell_mm`` across (like the raster
-    renderer's), a different pattern for each ``w``."""
-    node = add(tree, "ShaderNodeTexNoise", noise_dimensions="4D")
-    scale = math(tree, "DIVIDE", 1.0, math(tree, "MAXIMUM", cell_mm, 1e-3)) if not isinstance(cell_mm, float) else 1.0 / max(cell_mm, 1e-3)
-    feed(tree, node, Vector=vector, Scale=scale, W=w, Detail=detail, Roughness=0.5)
-    return math(tree, "DIVIDE", math(tree, "SUBTRACT", output(node, "Factor"), 0.5), _NOISE_SD[detail])
+    renderer's), a different pattern for each ``seed``."""
+    node = add(tree, "ShaderNodeTexNoise", noise_dimensions="3D")
+    scale = 1.0 / max(cell_mm, 1e-3) if isinstance(cell_mm, float) else math(tree, "DIVIDE", 1.0, math(tree, "MAXIMUM", cell_mm, 1e-3))
+    feed(tree, node, Vector=_seeded(tree, vector, seed), Scale=scale, Detail=0.0)
+    return output(math(tree, "DIVIDE", math(tree, "SUBTRACT", output(node, "Factor"), 0.5), _NOISE_SD), "Value")
+
+
+def _cell_noise(tree: bpy.types.NodeTree, vector: Any, cell_mm: float, seed: Any) -> bpy.types.NodeSocket:
+    """Independent values with mean 0 and standard deviation 1 on ``cell_mm`` squares: the raster renderer's
+    finest textures are a pixel or less across, so smoothness does not show and white noise is much cheaper."""
+    cells = output(vector_math(tree, "FLOOR", vector_math(tree, "DIVIDE", vector, (cell_mm, cell_mm, 1.0))), "Vector")
+    node = feed(tree, add(tree, "ShaderNodeTexWhiteNoise", noise_dimensions="3D"), Vector=_seeded(tree, cells, seed))
+    return output(math(tree, "MULTIPLY", math(tree, "SUBTRACT", output(node, "Value"), 0.5), 12.0**0.5), "Value")
 
 
 def _smoothstep(tree: bpy.types.NodeTree, value: Any, low: Any, high: Any) -> bpy.types.NodeSocket:
@@ -80,13 +94,15 @@ def _smoothstep(tree: bpy.types.NodeTree, value: Any, low: Any, high: Any) -> bp
     return output(feed(tree, node, Value=value, From_Min=low, From_Max=high, To_Min=0.0, To_Max=1.0), "Result")
 
 
-def stain_group() -> bpy.types.NodeTree:
+def stain_group(with_lysis: bool = True) -> bpy.types.NodeTree:
     """Shader group ``platesynth.stain``: the monolayer's transmittance at a point of a well.
 
     The density follows the raster renderer's model: the well's density with low-frequency unevenness, an
     elongated darker centre, a thinner band along the rim and high-frequency drying texture; lysed wells keep
     fibrous remnants, emptied wells nothing; ``Clearing`` removes a fraction (plaques, scratches) and ``Extra``
     adds density (specks). Transmittance ``T = t + (1 - t) * stain ** density`` with ``t`` the translucency.
+    Outputs ``Transmittance`` (with ``Clearing`` and ``Extra``) and ``Intact`` (without). ``with_lysis=False``
+    leaves out the lysed wells' remnant texture (a scene without lysed wells need not pay for it).
     """
     group = bpy.data.node_groups.new("platesynth.stain", "ShaderNodeTree")
     sockets = [("Offset", "NodeSocketVector"), ("Well Radius", "NodeSocketFloat"), ("Stain Colour", "NodeSocketColor")]
@@ -95,6 +111,7 @@ def stain_group() -> bpy.types.NodeTree:
     for name, kind in sockets:
         group.interface.new_socket(name=name, in_out="INPUT", socket_type=kind)
     group.interface.new_socket(name="Transmittance", in_out="OUTPUT", socket_type="NodeSocketColor")
+    group.interface.new_socket(name="Intact", in_out="OUTPUT", socket_type="NodeSocketColor")
     g_in, g_out = add(group, "NodeGroupInput"), add(group, "NodeGroupOutput")
     inp = {name: output(g_in, name) for name, _ in sockets}
 
@@ -119,25 +136,26 @@ def stain_group() -> bpy.types.NodeTree:
     band = math(group, "EXPONENT", math(group, "DIVIDE", to_rim, math(group, "MULTIPLY", math(group, "MAXIMUM", inp["Rim Clearing"], 1e-4), -1.0)))
     density = math(group, "MULTIPLY", density, math(group, "MULTIPLY_ADD", band, -0.5, 1.0))
     # high-frequency drying texture
-    high = _unit_noise(group, offset, 0.06, math(group, "ADD", seed, 17.0))
+    high = _cell_noise(group, offset, 0.06, math(group, "ADD", seed, 17.0))
     density = math(group, "MULTIPLY", density, math(group, "MAXIMUM", math(group, "MULTIPLY_ADD", math(group, "MULTIPLY", high, 2.0), inp["well_drying_detail"], 1.0), 0.0))
-    # lysed wells keep fibrous remnants of the layer
-    fibres = _unit_noise(group, offset, 0.5, math(group, "ADD", seed, 41.0))
-    remnant = math(group, "MULTIPLY_ADD", fibres, 0.35, math(group, "MULTIPLY_ADD", gradient, 0.5, math(group, "MULTIPLY_ADD", high, 0.3, 0.15)))
-    remnant = math(group, "MULTIPLY", math(group, "MINIMUM", math(group, "MAXIMUM", remnant, 0.0), 1.0), 0.45)
-    keep = math(group, "MULTIPLY_ADD", inp["well_lysed"], math(group, "SUBTRACT", remnant, 1.0), 1.0)
-    density = math(group, "MULTIPLY", density, keep)
-    density = math(group, "MULTIPLY", density, math(group, "SUBTRACT", 1.0, inp["well_emptied"]))
-    density = math(group, "MULTIPLY", density, math(group, "SUBTRACT", 1.0, inp["Clearing"]))
-    density = math(group, "MAXIMUM", math(group, "ADD", density, inp["Extra"]), 0.0)
+    if with_lysis:  # lysed wells keep fibrous remnants of the layer
+        fibres = _unit_noise(group, offset, 0.5, math(group, "ADD", seed, 41.0))
+        remnant = math(group, "MULTIPLY_ADD", fibres, 0.35, math(group, "MULTIPLY_ADD", gradient, 0.5, math(group, "MULTIPLY_ADD", high, 0.3, 0.15)))
+        remnant = math(group, "MULTIPLY", math(group, "MINIMUM", math(group, "MAXIMUM", remnant, 0.0), 1.0), 0.45)
+        keep = math(group, "MULTIPLY_ADD", inp["well_lysed"], math(group, "SUBTRACT", remnant, 1.0), 1.0)
+        density = math(group, "MULTIPLY", density, keep)
+    intact = math(group, "MULTIPLY", density, math(group, "SUBTRACT", 1.0, inp["well_emptied"]))
+    changed = math(group, "MULTIPLY", intact, math(group, "SUBTRACT", 1.0, inp["Clearing"]))
+    changed = math(group, "MAXIMUM", math(group, "ADD", changed, inp["Extra"]), 0.0)
 
     channels = feed(group, add(group, "ShaderNodeSeparateColor"), Color=inp["Stain Colour"])
-    combined = add(group, "ShaderNodeCombineColor")
     opaque = math(group, "SUBTRACT", 1.0, inp["Translucency"])
-    for channel in ("Red", "Green", "Blue"):
-        absorbed = math(group, "POWER", math(group, "MAXIMUM", output(channels, channel), 1e-3), density)
-        feed(group, combined, **{channel: math(group, "MULTIPLY_ADD", absorbed, opaque, inp["Translucency"])})
-    link(group, combined, g_out.inputs["Transmittance"])
+    for socket, density in (("Transmittance", changed), ("Intact", intact)):
+        combined = add(group, "ShaderNodeCombineColor")
+        for channel in ("Red", "Green", "Blue"):
+            absorbed = math(group, "POWER", math(group, "MAXIMUM", output(channels, channel), 1e-3), density)
+            feed(group, combined, **{channel: math(group, "MULTIPLY_ADD", absorbed, opaque, inp["Translucency"])})
+        link(group, combined, g_out.inputs[socket])
     return group
 
 
@@ -186,10 +204,18 @@ def _stain_node(tree: bpy.types.NodeTree, group: bpy.types.NodeTree, shared: Map
     return node
 
 
+def _ratio(tree: bpy.types.NodeTree, stain_node: bpy.types.Node) -> bpy.types.NodeSocket:
+    """Changed over intact transmittance: what a film over the monolayer must pass for the light to see the
+    changed stain."""
+    ratio = add(tree, "ShaderNodeMix", data_type="RGBA", blend_type="DIVIDE", clamp_result=False)
+    feed(tree, ratio, Factor=1.0, A=output(stain_node, "Transmittance"), B=output(stain_node, "Intact"))
+    return output(ratio, "Result")
+
+
 def monolayer_material(group: bpy.types.NodeTree, stain: StainInputs) -> bpy.types.Material:
     """The stained cell layer on each well floor (a thin absorbing film)."""
     material, tree, out = _new_material("platesynth.monolayer")
-    transmittance = _stain_node(tree, group, stain.sockets(tree), _plate_offset(tree))
+    transmittance = output(_stain_node(tree, group, stain.sockets(tree), _plate_offset(tree)), "Intact")
     link(tree, feed(tree, add(tree, "ShaderNodeBsdfTransparent"), Color=transmittance), out)
     return material
 
@@ -224,16 +250,14 @@ def plaque_material(group: bpy.types.NodeTree, stain: StainInputs, harmonics: in
     width = math(tree, "MAXIMUM", math(tree, "MULTIPLY", _attribute(tree, "softness"), _attribute(tree, "radius")), 0.01)
     edge = _smoothstep(tree, math(tree, "SUBTRACT", 0.5, math(tree, "DIVIDE", signed, math(tree, "MULTIPLY", width, 2.0))), 0.0, 1.0)
     offset = _plate_offset(tree)
-    residual_noise = _unit_noise(tree, offset, 0.12, math(tree, "ADD", _attribute(tree, "well_texture_seed"), 71.0))
+    residual_noise = _cell_noise(tree, offset, 0.12, math(tree, "ADD", _attribute(tree, "well_texture_seed"), 71.0))
     residual = math(tree, "MINIMUM", math(tree, "MAXIMUM", math(tree, "MULTIPLY_ADD", residual_noise, 0.25, 0.12), 0.0), 0.6)
     clearing = math(tree, "MULTIPLY", math(tree, "MULTIPLY", _attribute(tree, "clearness"), edge), math(tree, "SUBTRACT", 1.0, residual))
     path = add(tree, "ShaderNodeLightPath")
     topmost = math(tree, "COMPARE", output(path, "Transparent Depth"), _value(tree, "First Plaque Depth", float(first_depth)), 0.5)
     clearing = math(tree, "MULTIPLY", clearing, topmost)
-    shared = stain.sockets(tree)
-    ratio = add(tree, "ShaderNodeMix", data_type="RGBA", blend_type="DIVIDE", clamp_result=False)
-    feed(tree, ratio, Factor=1.0, A=_stain_node(tree, group, shared, offset, clearing), B=_stain_node(tree, group, shared, offset))
-    link(tree, feed(tree, add(tree, "ShaderNodeBsdfTransparent"), Color=output(ratio, "Result")), out)
+    stain_node = _stain_node(tree, group, stain.sockets(tree), offset, clearing)
+    link(tree, feed(tree, add(tree, "ShaderNodeBsdfTransparent"), Color=_ratio(tree, stain_node)), out)
     return material
 
 
@@ -241,12 +265,8 @@ def marks_material(group: bpy.types.NodeTree, stain: StainInputs) -> bpy.types.M
     """Scratches and specks on the monolayer: each mark's ``mark_clearing`` (stain scraped off) and ``mark_extra``
     (density added) attributes change the stain of the well under it."""
     material, tree, out = _new_material("platesynth.marks")
-    offset = _plate_offset(tree)
-    shared = stain.sockets(tree)
-    ratio = add(tree, "ShaderNodeMix", data_type="RGBA", blend_type="DIVIDE", clamp_result=False)
-    changed = _stain_node(tree, group, shared, offset, _attribute(tree, "mark_clearing"), _attribute(tree, "mark_extra"))
-    feed(tree, ratio, Factor=1.0, A=changed, B=_stain_node(tree, group, shared, offset))
-    link(tree, feed(tree, add(tree, "ShaderNodeBsdfTransparent"), Color=output(ratio, "Result")), out)
+    stain_node = _stain_node(tree, group, stain.sockets(tree), _plate_offset(tree), _attribute(tree, "mark_clearing"), _attribute(tree, "mark_extra"))
+    link(tree, feed(tree, add(tree, "ShaderNodeBsdfTransparent"), Color=_ratio(tree, stain_node)), out)
     return material
 
 

@@ -55,7 +55,7 @@ def build(description: Mapping[str, Any]) -> dict[str, bpy.types.Object]:
     well_radius = float(plate_data["well_radius_mm"])
     toward_camera = float(view["toward_camera"])
     stain = materials.StainInputs(tuple(view["stain_linear_rgb"]), well_radius, scene_data["stain"])
-    stain_group = materials.stain_group()
+    stain_group = materials.stain_group(with_lysis=any(w["lysed"] for w in scene_data["wells"]))
     objects: dict[str, bpy.types.Object] = {}
 
     wells = scene_data["wells"]
@@ -99,7 +99,7 @@ def build(description: Mapping[str, Any]) -> dict[str, bpy.types.Object]:
     objects["plaques"] = _tag(cores, "both")
     fringes = bpy.data.objects.new("platesynth.plaque_fringes", cores.data)
     bpy.context.scene.collection.objects.link(fringes)
-    geometry.add_modifier(fringes, plaque_group, {"Well Radius": well_radius, "Layer Step": step, "Margin": 1.0})
+    geometry.add_modifier(fringes, plaque_group, {"Well Radius": well_radius, "Layer Step": step, "Fringe": True, "Margin": 1.0})
     objects["plaque_fringes"] = _tag(fringes, "image")
 
     _artifacts(scene_data, view, stain_group, stain, wells, well_attributes, objects)
