@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# The first platesynth segmentation model: synthetic 12-well plates only, trained on a CPU in about 25 minutes.
+# The first platesynth segmentation model: synthetic 12-well plates only, trained on a CPU in about 25 minutes (2 busy cores).
 #
 #   scripts/train_first_model.sh                 # renders 550 images into $DATA, trains into $MODEL
 #   DATA=/scratch/plates MODEL=models/mine THREADS=4 scripts/train_first_model.sh
@@ -19,9 +19,9 @@ for spec in "high 200 101" "medium 150 102" "low 100 103" "diverse 100 104"; do
     platesynth render --out "$DATA/$1" --count "$2" --seed "$3" --preset "$1" --plate 12 --size 512x384
 done
 
-# 10 epochs x 40 steps x 4 patches of 256x256, 5% of each dataset held out (24 images at most) for the
-# validation loss and the threshold tuning; one data-loading process beside the training thread.
+# 20 epochs x 40 steps x 4 patches of 256x256, 5% of each dataset held out for the
+# validation loss and the threshold tuning (16 images at most); one data-loading process beside the training thread.
 platesynth train \
     --data "$DATA/high" --data "$DATA/medium" --data "$DATA/low" --data "$DATA/diverse" \
-    --out "$MODEL" --epochs 10 --steps 40 --batch-size 4 --patch 256x256 --lr 2e-3 \
+    --out "$MODEL" --epochs 20 --steps 40 --batch-size 4 --patch 256x256 --lr 2e-3 \
     --val-fraction 0.05 --max-val 16 --seed 0 --threads "$THREADS" --workers 1

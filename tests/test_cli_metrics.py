@@ -107,6 +107,14 @@ def test_pair_resize(tmp_path):
     assert json.loads(result.stdout) == compare_pair(real, bigger, lpips=False, frechet=False, resize=True)
 
 
+def test_pair_images_too_small_for_deep_metrics(tmp_path, offline_weights):
+    real = save(tmp_path / "real.png", textured(10, 24, 40))
+    synthetic = save(tmp_path / "synthetic.png", textured(11, 24, 40))
+    assert_refused(invoke("pair", str(real), str(synthetic), "--no-frechet"), "LPIPS", "31x31", "--no-lpips")
+    assert_refused(invoke("pair", str(real), str(synthetic), "--no-lpips"), "fd_patches_alexnet", "--no-frechet")
+    assert invoke("pair", str(real), str(synthetic), "--no-lpips", "--no-frechet").exit_code == 0
+
+
 def test_dataset_json_equals_library(tmp_path):
     images = folder(tmp_path / "synthetic", range(5))
     result = invoke("dataset", str(images), "--json", "--size", "40x30")

@@ -107,8 +107,10 @@ def test_training_resumes_to_the_same_weights(rendered, tmp_path):
     assert saved["training"]["sources"][0]["n_train"] == len(train_items) == 3
     assert saved["training"]["sources"][0]["preset"] == "high"
 
-    with pytest.raises(DatasetError, match="different training"):
+    with pytest.raises(DatasetError, match="different training .differs in train seed"):
         train(config.model_copy(update={"seed": 1}), tmp_path / "straight", TINY)
+    with pytest.raises(DatasetError, match="differs in model channels"):
+        train(config, tmp_path / "straight", TINY.model_copy(update={"channels": (8, 12, 24)}))
 
 
 def _oracle(rendered, drop_plaque_in=None):

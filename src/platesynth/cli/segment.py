@@ -31,6 +31,11 @@ Threads = Annotated[
     typer.Option("--threads", help="CPU threads for torch (0: torch's default; on a busy machine 1 is often fastest)."),
 ]
 
+WellProb = Annotated[float | None, typer.Option("--well-prob", help="Override the wells' probability threshold.")]
+WellNms = Annotated[float | None, typer.Option("--well-nms", help="Override the wells' NMS threshold.")]
+PlaqueProb = Annotated[float | None, typer.Option("--plaque-prob", help="Override the plaques' probability threshold.")]
+PlaqueNms = Annotated[float | None, typer.Option("--plaque-nms", help="Override the plaques' NMS threshold.")]
+
 _PATCH = re.compile(r"^\s*(\d+)\s*[xX]\s*(\d+)\s*$")
 
 
@@ -84,7 +89,9 @@ def _model_config(path: Path | None) -> Any:
 def train_command(
     data: Annotated[list[Path], typer.Option("--data", "-d", help="Dataset directory in the platesynth layout; repeatable.")],
     out: Annotated[Path, typer.Option("--out", "-o", help="Model directory to write (re-running resumes).")],
-    mix: Annotated[str | None, typer.Option("--mix", help="Sampling fraction per --data, e.g. 0.9,0.1 (default: by size).")] = None,
+    mix: Annotated[
+        str | None, typer.Option("--mix", help="Sampling fraction per --data, e.g. 0.9,0.1 (default: by size).")
+    ] = None,
     epochs: Annotated[int, typer.Option("--epochs", help="Epochs.")] = 20,
     steps: Annotated[int, typer.Option("--steps", help="Optimiser steps per epoch.")] = 50,
     batch_size: Annotated[int, typer.Option("--batch-size", help="Patches per step.")] = 4,
@@ -95,7 +102,9 @@ def train_command(
     seed: Annotated[int, typer.Option("--seed", help="Seed of the split, initial weights, sampling and augmentation.")] = 0,
     augment: Annotated[bool, typer.Option("--augment/--no-augment", help="Flips, rotations, scale, intensity, noise.")] = True,
     within_well: Annotated[float, typer.Option("--within-well", help="Weight of the penalty on plaques outside wells.")] = 0.0,
-    tune: Annotated[bool, typer.Option("--tune/--no-tune", help="Tune probability/NMS thresholds on the validation images.")] = True,
+    tune: Annotated[
+        bool, typer.Option("--tune/--no-tune", help="Tune probability/NMS thresholds on the validation images.")
+    ] = True,
     model_config: Annotated[
         Path | None, typer.Option("--model-config", help="JSON ModelConfig (architecture, working size, grids).")
     ] = None,
@@ -134,10 +143,12 @@ def train_command(
     def progress(event: dict[str, Any]) -> None:
         if "loss" in event:
             done = (event["epoch"] - 1) * config.steps_per_epoch + event["step"]
-            bar.update(task_id, completed=done, visible=True, description=f"epoch {event['epoch']}/{config.epochs} loss {event['loss']:.3f}")
+            description = f"epoch {event['epoch']}/{config.epochs} loss {event['loss']:.3f}"
+            bar.update(task_id, completed=done, visible=True, description=description)
         else:
             val_loss = "n/a" if event["val_loss"] is None else f"{event['val_loss']:.4f}"
-            bar.console.print(f"epoch {event['epoch']}: train loss {event['train_loss']:.4f}, validation loss {val_loss}", highlight=False)
+            message = f"epoch {event['epoch']}: train loss {event['train_loss']:.4f}, validation loss {val_loss}"
+            bar.console.print(message, highlight=False)
 
     with bar:
         summary = train(config, out, _model_config(model_config), overwrite=overwrite, device=device, progress=progress)
@@ -151,7 +162,9 @@ def train_command(
     if as_json:
         print_json(result)
     else:
-        console.print(f"model written to {summary.model_dir} (best validation loss {summary.best_val_loss:.4f})", highlight=False)
+        resumed = f", resumed after epoch {summary.resumed_from_epoch}" if summary.resumed_from_epoch else ""
+        message = f"model written to {summary.model_dir} (best validation loss {summary.best_val_loss:.4f}{resumed})"
+        console.print(message, highlight=False)
 
 
 def _image_paths(inputs: list[Path]) -> list[Path]:
@@ -189,10 +202,10 @@ def predict_command(
     out: Annotated[Path, typer.Option("--out", "-o", help="Output directory (dataset layout plus counts.csv).")],
     plate: PlateFormat = None,
     from_below: FromBelow = True,
-    well_prob: Annotated[float | None, typer.Option("--well-prob", help="Override the wells' probability threshold.")] = None,
-    well_nms: Annotated[float | None, typer.Option("--well-nms", help="Override the wells' NMS threshold.")] = None,
-    plaque_prob: Annotated[float | None, typer.Option("--plaque-prob", help="Override the plaques' probability threshold.")] = None,
-    plaque_nms: Annotated[float | None, typer.Option("--plaque-nms", help="Override the plaques' NMS threshold.")] = None,
+    well_prob: WellProb = None,
+    well_nms: WellNms = None,
+    plaque_prob: PlaqueProb = None,
+    plaque_nms: PlaqueNms = None,
     device: Annotated[str, typer.Option("--device", help="auto, cpu or cuda.")] = "auto",
     threads: Threads = 0,
 ) -> None:
@@ -215,7 +228,9 @@ def predict_command(
     console.print(f"{len(paths)} image(s) -> {out} (plaques per well: {counts})", highlight=False)
 
 
-evaluate_app = typer.Typer(help="Evaluate a model: instance masks (AP, IoU_R) or plaques per well against counts.", no_args_is_help=True)
+evaluate_app = typer.Typer(
+    help="Evaluate a model: instance masks (AP, IoU_R) or plaques per well against counts.", no_args_is_help=True
+)
 
 
 def _print_masks(report: dict[str, Any]) -> None:
@@ -233,6 +248,10 @@ def evaluate_masks_command(
     model: ModelDir,
     data: Annotated[Path, typer.Option("--data", "-d", help="Dataset with true masks (platesynth layout).")],
     tau: Annotated[list[float] | None, typer.Option("--tau", help="IoU threshold; repeatable (default 0.5).")] = None,
+    well_prob: WellProb = None,
+    well_nms: WellNms = None,
+    plaque_prob: PlaqueProb = None,
+    plaque_nms: PlaqueNms = None,
     device: Annotated[str, typer.Option("--device", help="auto, cpu or cuda.")] = "auto",
     threads: Threads = 0,
     as_json: Json = False,
@@ -247,7 +266,9 @@ def evaluate_masks_command(
         raise ParameterError(f"--tau must be in (0, 1], got {', '.join(map(str, taus))}")
     _set_threads(threads)
     network = load_model(model, select_device(device))
-    report = _with_progress("evaluating", lambda progress: evaluate_masks(functools.partial(predict_image, network), data, taus, progress))
+    thresholds = _thresholds(network, {"wells": (well_prob, well_nms), "plaques": (plaque_prob, plaque_nms)})
+    predictor = functools.partial(predict_image, network, thresholds=thresholds)
+    report = _with_progress("evaluating", lambda progress: evaluate_masks(predictor, data, taus, progress))
     if as_json:
         print_json(report)
     else:
@@ -263,6 +284,11 @@ def evaluate_counts_command(
     plate: PlateFormat = None,
     from_below: FromBelow = True,
     table: Annotated[Path | None, typer.Option("--table", help="Also write the per-well table to this CSV file.")] = None,
+    tau: Annotated[list[float] | None, typer.Option("--tau", help="IoU threshold; repeatable (default 0.5).")] = None,
+    well_prob: WellProb = None,
+    well_nms: WellNms = None,
+    plaque_prob: PlaqueProb = None,
+    plaque_nms: PlaqueNms = None,
     device: Annotated[str, typer.Option("--device", help="auto, cpu or cuda.")] = "auto",
     threads: Threads = 0,
     as_json: Json = False,
@@ -275,7 +301,8 @@ def evaluate_counts_command(
     _set_threads(threads)
     network = load_model(model, select_device(device))
     plate_format = plate or network.config.plate_format
-    predictor = functools.partial(predict_image, network, plate_format=plate_format, from_below=from_below)
+    thresholds = _thresholds(network, {"wells": (well_prob, well_nms), "plaques": (plaque_prob, plaque_nms)})
+    predictor = functools.partial(predict_image, network, thresholds=thresholds, plate_format=plate_format, from_below=from_below)
     baseline = network.config.training.get("mean_plaques_per_well")
     baseline = baseline if isinstance(baseline, (int, float)) and math.isfinite(baseline) else None
     report = _with_progress(

@@ -22,15 +22,15 @@ from platesynth.metrics.pair import MetricSkippedWarning, ProgressCallback
 __all__ = ["dataset_metrics"]
 
 
-def _feature_extractors(names: tuple[str, ...]) -> dict[str, Any]:
+def _feature_extractors() -> dict[str, Any]:
+    """AlexNet's feature extractor, and Inception's when its weights are found (else a warning says why)."""
     from platesynth.metrics.frechet import get_feature_extractor
 
     extractors = {"alexnet": get_feature_extractor("alexnet")}
-    if "inception" in names:
-        try:
-            extractors["inception"] = get_feature_extractor("inception")
-        except WeightsNotFoundError as exc:
-            warnings.warn(f"fid_inception and kid_inception left out: {exc}", MetricSkippedWarning, stacklevel=3)
+    try:
+        extractors["inception"] = get_feature_extractor("inception")
+    except WeightsNotFoundError as exc:
+        warnings.warn(f"fid_inception and kid_inception left out: {exc}", MetricSkippedWarning, stacklevel=3)
     return extractors
 
 
@@ -42,12 +42,15 @@ def _scan_folder(
     description: str,
 ) -> dict[str, Any]:
     """Read every image of ``directory`` once and feed all metrics; return their states and values."""
-    from platesynth.metrics.frechet import FeatureStatistics
     from platesynth.metrics.naturalness import naturalness_factor
 
     paths = list_images(directory)
     entropy, variability = PixelEntropy(size=size), BrightnessVariability(size=size)
-    statistics = {name: FeatureStatistics(extractor) for name, extractor in extractors.items()}
+    statistics = {}
+    if extractors:
+        from platesynth.metrics.frechet import FeatureStatistics
+
+        statistics = {name: FeatureStatistics(extractor) for name, extractor in extractors.items()}
     batch_size = min((extractor.batch_size for extractor in extractors.values()), default=1)
     nf_values = []
     pending: list[np.ndarray] = []  # images waiting for the next feature batch
@@ -164,7 +167,7 @@ def dataset_metrics(
     list_images(directory)  # refuse a missing or empty folder before loading any network
     if reference is not None:
         list_images(reference)
-    extractors = _feature_extractors(("alexnet", "inception")) if reference is not None and frechet else {}
+    extractors = _feature_extractors() if reference is not None and frechet else {}
     scanned = _scan_folder(directory, size, extractors, progress, str(directory))
     result: dict[str, Any] = {
         "n_images": scanned["n_images"],

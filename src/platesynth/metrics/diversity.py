@@ -33,22 +33,31 @@ __all__ = ["BrightnessVariability", "PixelEntropy", "grayscale", "size_matched_e
 ImageOrPath = np.ndarray | str | os.PathLike
 
 
-_BATCH_BYTES = 32 << 20
-"""Gray images are buffered up to this many bytes (at most 32 images) and counted in one pass over the histograms."""
+_BATCH_IMAGES = 128
+_BATCH_BYTES = 64 << 20
+"""Gray images are buffered (at most 128 of them, 64 MB) and counted together in one pass over the histograms."""
+_TILE_POSITIONS = 256
 
 
 @numba.njit(cache=True, nogil=True)
 def _count_values(counts: np.ndarray, grays: np.ndarray, bin_of_value: np.ndarray) -> None:
     """``counts[i, bin_of_value[grays[k, i]]] += 1`` for every image ``k`` and position ``i``; position-major counts.
 
-    Positions outside, images inside: each position's histogram stays in cache while the whole batch is counted.
+    A tile of positions of every image is first copied position-major, then counted position by position, so that
+    each position's histogram stays in cache while the whole batch of images is counted into it.
     """
     n_images, n_positions = grays.shape
     bins = counts.size // n_positions
-    for position in range(n_positions):
-        start = position * bins
+    tile = np.empty((_TILE_POSITIONS, n_images), dtype=np.uint8)
+    for start in range(0, n_positions, _TILE_POSITIONS):
+        stop = min(start + _TILE_POSITIONS, n_positions)
         for image in range(n_images):
-            counts[start + bin_of_value[grays[image, position]]] += 1
+            for position in range(start, stop):
+                tile[position - start, image] = grays[image, position]
+        for position in range(start, stop):
+            first = position * bins
+            for image in range(n_images):
+                counts[first + bin_of_value[tile[position - start, image]]] += 1
 
 
 @numba.njit(cache=True, nogil=True)
@@ -94,10 +103,10 @@ def grayscale(image: np.ndarray, size: tuple[int, int] | None = None) -> np.ndar
     if image.dtype == np.uint16:
         image = to_rgb_uint8(image)
     if image.ndim == 3:
-        image = np.asarray(Image.fromarray(np.ascontiguousarray(image[..., :3]), mode="RGB").convert("L"))
+        image = np.asarray(Image.fromarray(np.ascontiguousarray(image[..., :3])).convert("L"))
     if size is not None and image.shape != tuple(size):
         height, width = size
-        image = np.asarray(Image.fromarray(image, mode="L").resize((width, height), Image.Resampling.BICUBIC))
+        image = np.asarray(Image.fromarray(image).resize((width, height), Image.Resampling.BICUBIC))
     return image
 
 
@@ -142,7 +151,7 @@ class PixelEntropy(_PerPositionMetric):
     Equals granatpy 0.1.3 ``dataset_entropy(paths, size=(width, height), bins=bins)``. The state is one histogram
     per position, ``height * width * bins`` counts whose integer type grows with the number of images (uint8 up
     to 255 images, then uint16 up to 65535, ...): 10,000 images of 1024x768 need 400 MB. Images are counted in
-    batches (up to 32 buffered gray images, 32 MB), each in one pass over the histograms.
+    batches (up to 128 buffered gray images, 64 MB), each in one pass over the histograms.
 
     The entropy at a position is at most ``log2(min(n_images, bins))``, so it grows with the number of images:
     compare datasets of equal size, or use :func:`size_matched_entropy`.
@@ -183,7 +192,7 @@ class PixelEntropy(_PerPositionMetric):
         gray = self._gray(image)
         if self._counts is None:
             self._counts = np.zeros(gray.size * self.bins, dtype=np.uint8)
-            batch = max(1, min(32, _BATCH_BYTES // gray.size))
+            batch = max(1, min(_BATCH_IMAGES, _BATCH_BYTES // gray.size))
             self._pending = np.empty((batch, gray.size), dtype=np.uint8)
         self._pending[self._n_pending] = gray.ravel()
         self._n_pending += 1

@@ -40,6 +40,8 @@ its ``total`` steps (``description`` names the step now running)."""
 
 _SSIM_MIN_SIDE = 7
 """scikit-image's default SSIM window is 7x7."""
+_ALEXNET_MIN_SIDE = 31
+"""Smallest image side that AlexNet's convolutions and poolings accept (LPIPS and AlexNet features)."""
 
 
 class MetricSkippedWarning(UserWarning):
@@ -206,7 +208,8 @@ def compare_pair(
     ShapeMismatchError
         If the sizes differ and ``resize`` is False.
     MetricUndefinedError
-        If an image is constant (naturalness undefined) or smaller than 7x7.
+        If an image is constant (naturalness undefined), smaller than 7x7, or too small for LPIPS (31x31) or
+        for the patch Fréchet distance (about 84x58).
     """
     steps = ["reading images", "naturalness"] + ["LPIPS"] * lpips + ["Fréchet distance"] * frechet
     done = 0
@@ -248,14 +251,25 @@ def compare_pair(
     if lpips:
         from platesynth.metrics.lpips import lpips_distance
 
+        if min(real_rgb.shape[:2]) < _ALEXNET_MIN_SIDE:
+            raise MetricUndefinedError(
+                f"LPIPS needs images of at least {_ALEXNET_MIN_SIDE}x{_ALEXNET_MIN_SIDE} pixels, the images are "
+                f"{real_rgb.shape[1]}x{real_rgb.shape[0]}; leave it out with lpips=False (--no-lpips)"
+            )
         result["lpips"] = float(lpips_distance(real_rgb, synthetic_rgb, net="alex"))
         step_done()
     if frechet:
         from platesynth.metrics.frechet import get_feature_extractor, patch_frechet_distance
 
-        result["fd_patches_alexnet"] = float(
-            patch_frechet_distance(real_rgb, synthetic_rgb, get_feature_extractor("alexnet"))
-        )
+        try:
+            result["fd_patches_alexnet"] = float(
+                patch_frechet_distance(real_rgb, synthetic_rgb, get_feature_extractor("alexnet"))
+            )
+        except MetricUndefinedError as exc:
+            raise MetricUndefinedError(
+                f"fd_patches_alexnet: {exc} (each image is cut into 6 patches); leave it out with frechet=False "
+                "(--no-frechet)"
+            ) from None
         try:
             inception = get_feature_extractor("inception")
         except WeightsNotFoundError as exc:

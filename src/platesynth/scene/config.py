@@ -285,7 +285,7 @@ class CameraConfig(Section):
     tilt_deg: Dist = number([0.0, 2.0], 0.0, 15.0, "deg", "tilt of the plate away from the camera axis")
     offset: Dist = number({"normal": [0.0, 0.012]}, -0.2, 0.2, "image", "offset of the plate centre, per axis")
     distance_mm: Dist = number([300, 500], 100, 2000, "mm", "camera distance (sets the parallax of the walls)")
-    defocus_px: Dist = number([0.0, 0.6], 0.0, 5.0, "px", "optical blur at 1024 px image width")
+    defocus_px: Dist = number([0.0, 0.4], 0.0, 5.0, "px", "optical blur at 1024 px image width")
 
 
 class BackgroundConfig(Section):
@@ -306,7 +306,7 @@ class BackgroundConfig(Section):
 class StainConfig(Section):
     """The stained cell monolayer."""
 
-    hue_deg: Dist = number([242, 288], 0.0, 360.0, "deg", "stain hue (crystal violet 240-290, neutral red 345-360)")
+    hue_deg: Dist = number([246, 286], 0.0, 360.0, "deg", "stain hue (crystal violet 240-290, neutral red 345-360)")
     saturation: Dist = number([0.9, 1.0], 0.0, 1.0, "", "stain saturation at nominal density")
     value: Dist = number([0.9, 1.0], 0.0, 1.0, "", "stain value (brightness) at nominal density")
     density: Dist = number([0.9, 1.15], 0.0, 3.0, "", "plate-wide stain density relative to nominal")
@@ -315,7 +315,7 @@ class StainConfig(Section):
     unevenness_scale_mm: Dist = number([2.0, 6.0], 0.5, 30.0, "mm", "size of low-frequency blotches")
     centre_gradient: Dist = number([0.0, 0.15], 0.0, 1.0, "", "extra density of the elongated dark centre")
     centre_elongation: Dist = number([1.0, 2.0], 1.0, 5.0, "", "aspect ratio of the dark centre")
-    drying_detail: Dist = number([0.06, 0.16], 0.0, 1.0, "", "high-frequency drying texture")
+    drying_detail: Dist = number([0.02, 0.06], 0.0, 1.0, "", "high-frequency drying texture")
     rim_clearing_mm: Dist = number([0.1, 0.6], 0.0, 5.0, "mm", "width of the paler band along the rim")
     translucency: Dist = number([0.0, 0.008], 0.0, 1.0, "", "fraction of light passing un-absorbed")
 
@@ -360,7 +360,7 @@ class LightingConfig(Section):
     """Light and exposure."""
 
     exposure_ev: Dist = number([-0.55, -0.1], -3.0, 3.0, "EV", "exposure correction")
-    color_temperature_k: Dist = number([8000, 12000], 2500, 15000, "K",
+    color_temperature_k: Dist = number([9000, 13000], 2500, 15000, "K",
                                        "colour temperature the camera's white balance leaves (higher: bluer)")
     vignetting: Dist = number([0.0, 0.15], 0.0, 1.0, "", "darkening at the image corners")
     glare: Dist = number([0.0, 0.04], 0.0, 1.0, "", "strength of a soft glare spot")
@@ -383,10 +383,10 @@ class PostConfig(Section):
     chromatic_aberration_strength: Dist = number([0.3, 1.2], 0.0, 10.0, "px", "colour shift at the corners")
     bloom: float = probability(0.3, "chance of bloom")
     bloom_strength: Dist = number([0.05, 0.2], 0.0, 1.0, "", "glow around bright areas")
-    sharpen: float = probability(0.6, "chance of sharpening")
-    sharpen_strength: Dist = number([0.2, 0.8], 0.0, 2.0, "", "unsharp-mask amount")
-    noise: float = probability(0.8, "chance of sensor noise")
-    noise_strength: Dist = number([0.8, 2.5], 0.0, 30.0, "levels", "noise sd in 8-bit levels")
+    sharpen: float = probability(1.0, "chance of sharpening")
+    sharpen_strength: Dist = number([1.0, 2.0], 0.0, 2.0, "", "unsharp-mask amount")
+    noise: float = probability(1.0, "chance of sensor noise")
+    noise_strength: Dist = number([2.0, 4.0], 0.0, 30.0, "levels", "noise sd in 8-bit levels")
     jpeg: float = probability(0.9, "chance of JPEG compression")
     jpeg_strength: Dist = number([0.05, 0.2], 0.0, 0.9, "", "1 - JPEG quality/100")
 

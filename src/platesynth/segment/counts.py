@@ -178,7 +178,7 @@ class CountMetrics:
         if n == 0:
             return {"mae": math.nan, "rmse": math.nan, "pearson_r": math.nan, "bias": math.nan, "n_wells": 0}
         error = predicted - true
-        if n >= 2 and predicted.std() > 0 and true.std() > 0:
+        if n >= 2 and np.ptp(predicted) > 0 and np.ptp(true) > 0:
             pearson = float(np.corrcoef(predicted, true)[0, 1])
         else:
             pearson = math.nan

@@ -86,7 +86,9 @@ class MatchResult:
         return self.iou_sum / self.n_true if self.n_true else math.nan
 
 
-def match_from_iou(iou: np.ndarray, tau: float, true_ids: Sequence[int] | None = None, pred_ids: Sequence[int] | None = None) -> MatchResult:
+def match_from_iou(
+    iou: np.ndarray, tau: float, true_ids: Sequence[int] | None = None, pred_ids: Sequence[int] | None = None
+) -> MatchResult:
     """Optimal one-to-one matching of an IoU matrix at threshold ``tau`` (see the module docstring)."""
     if not 0 < tau <= 1:
         raise ValueError(f"tau must be in (0, 1], got {tau}")

@@ -134,7 +134,8 @@ class StarDistTwoBranch(nn.Module):
         self.encoder = nn.ModuleList(
             _conv_block(3 if i == 0 else channels[i - 1], c) for i, c in enumerate(channels)
         )
-        self.context = _conv_block(channels[-1], channels[-1], config.context_dilations) if config.context_dilations else nn.Identity()
+        dilations = config.context_dilations
+        self.context = _conv_block(channels[-1], channels[-1], dilations) if dilations else nn.Identity()
         self.decoders = nn.ModuleDict(
             {
                 name: _Decoder(channels, int(math.log2(branch.grid)), config.n_rays, branch.dist_scale)

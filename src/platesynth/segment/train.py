@@ -1,10 +1,10 @@
 """Training: datasets mixed by fraction, augmented patches, validation, checkpoints, resuming, threshold tuning.
 
 A model directory being trained holds, besides the model itself (``weights.pt``: the weights with the lowest
-validation loss so far, ``config.json``), ``train.json`` (the :class:`TrainConfig`), ``checkpoint.pt`` (the state at
-the end of the last finished epoch) and ``history.json`` (losses per epoch). Running the same training again
-resumes from the checkpoint; every random draw is keyed by the seed, the epoch and the sample's position, so a
-resumed run ends with the same weights as an uninterrupted one.
+validation loss so far, ``config.json``), ``train.json`` (the :class:`TrainConfig` and the network configuration
+asked for), ``checkpoint.pt`` (the state at the end of the last finished epoch) and ``history.json`` (losses per
+epoch). Running the same training again resumes from the checkpoint; every random draw is keyed by the seed, the
+epoch and the sample's position, so a resumed run ends with the same weights as an uninterrupted one.
 """
 
 from __future__ import annotations
@@ -19,7 +19,7 @@ from typing import Any
 
 import numpy as np
 import torch
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
+from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
 from platesynth import __version__
 from platesynth.data.layout import DatasetItem, list_items, load_item, read_manifest
@@ -35,7 +35,7 @@ from platesynth.segment.predict import nms_polygons, polygons_to_mask, predict_m
 TRAIN_CONFIG_NAME = "train.json"
 CHECKPOINT_NAME = "checkpoint.pt"
 HISTORY_NAME = "history.json"
-PROB_THRESHOLDS = (0.3, 0.4, 0.5, 0.6, 0.7, 0.8)
+PROB_THRESHOLDS = (0.1, 0.15, 0.2, 0.25, 0.3, 0.4, 0.5, 0.6, 0.7)
 NMS_THRESHOLDS = (0.2, 0.3, 0.4, 0.5)
 
 
@@ -122,7 +122,15 @@ def _fractions(config: TrainConfig, train_sets: list[list[DatasetItem]]) -> list
     return [w / total for w in weights]
 
 
-def _check_model_dir(model_dir: Path, config: TrainConfig, overwrite: bool) -> bool:
+def _identity(config: TrainConfig, model_config: ModelConfig) -> dict[str, Any]:
+    """What a training directory is: the training settings and the network asked for (saved as ``train.json``)."""
+    return {
+        "train": config.model_dump(mode="json"),
+        "model": model_config.model_dump(mode="json", exclude={"training", "version"}),
+    }
+
+
+def _check_model_dir(model_dir: Path, identity: dict[str, Any], overwrite: bool) -> bool:
     """Whether to resume; refuses a directory holding a different training unless ``overwrite``."""
     saved_path = model_dir / TRAIN_CONFIG_NAME
     if not saved_path.is_file():
@@ -130,17 +138,23 @@ def _check_model_dir(model_dir: Path, config: TrainConfig, overwrite: bool) -> b
             raise DatasetError(f"{model_dir}: not empty and not a training directory (use --overwrite to train there anyway)")
         return False
     try:
-        saved = TrainConfig.model_validate_json(saved_path.read_text())
-    except (ValidationError, ValueError) as exc:
+        saved = json.loads(saved_path.read_text())
+    except (OSError, ValueError) as exc:
         if not overwrite:
-            raise DatasetError(f"{saved_path}: unreadable training configuration ({exc.__class__.__name__}); use --overwrite") from None
+            raise DatasetError(f"{saved_path}: unreadable ({exc.__class__.__name__}); use --overwrite to replace it") from None
         saved = None
-    if saved == config and (model_dir / CHECKPOINT_NAME).is_file():
+    if saved == identity and (model_dir / CHECKPOINT_NAME).is_file():
         return True
-    if not overwrite and saved is not None and saved != config:
-        changed = [k for k in TrainConfig.model_fields if getattr(saved, k) != getattr(config, k)]
+    if saved is not None and saved != identity and not overwrite:
+        changed = [
+            f"{part} {key}"
+            for part in ("train", "model")
+            for key in identity[part]
+            if not isinstance(saved.get(part), dict) or saved[part].get(key) != identity[part][key]
+        ]
         raise DatasetError(
-            f"{model_dir}: holds a different training (differs in {', '.join(changed)}); use --overwrite to replace it"
+            f"{model_dir}: holds a different training (differs in {', '.join(changed) or 'format'}); "
+            "use --overwrite to replace it"
         )
     for name in (CHECKPOINT_NAME, HISTORY_NAME, TRAIN_CONFIG_NAME):
         (model_dir / name).unlink(missing_ok=True)
@@ -152,7 +166,11 @@ def _collate(samples: list[dict[str, torch.Tensor]]) -> dict[str, torch.Tensor]:
 
 
 def _loss_terms(config: TrainConfig) -> dict[str, float]:
-    return {"lambda_dist": config.lambda_dist, "background_reg": config.background_reg, "within_well_weight": config.within_well_weight}
+    return {
+        "lambda_dist": config.lambda_dist,
+        "background_reg": config.background_reg,
+        "within_well_weight": config.within_well_weight,
+    }
 
 
 def validation_loss(model: StarDistTwoBranch, dataset: SegmentationDataset, config: TrainConfig, device: torch.device) -> float:
@@ -242,9 +260,10 @@ def train(
     baseline = mean_plaques_per_well(train_items)
     for item in val_items:
         load_item(item)
-    resume = _check_model_dir(model_dir, config, overwrite)
+    identity = _identity(config, model_config)
+    resume = _check_model_dir(model_dir, identity, overwrite)
     model_dir.mkdir(parents=True, exist_ok=True)
-    write_json(model_dir / TRAIN_CONFIG_NAME, config.model_dump(mode="json"))
+    write_json(model_dir / TRAIN_CONFIG_NAME, identity)
 
     torch_device = select_device(device)
     torch.manual_seed(config.seed)
@@ -285,7 +304,9 @@ def train(
             if progress is not None:
                 progress({"epoch": epoch + 1, "step": step, "steps": config.steps_per_epoch, "loss": parts["total"]})
         val_loss = validation_loss(model, val_data, config, torch_device)
-        history.append({"epoch": epoch + 1, "train_loss": float(np.mean(losses)), "val_loss": None if math.isnan(val_loss) else val_loss})
+        history.append(
+            {"epoch": epoch + 1, "train_loss": float(np.mean(losses)), "val_loss": None if math.isnan(val_loss) else val_loss}
+        )
         if math.isnan(val_loss) or val_loss < best_val:
             best_val = val_loss if not math.isnan(val_loss) else best_val
             save_model(model, model_dir)

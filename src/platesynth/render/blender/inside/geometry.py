@@ -187,7 +187,13 @@ def plaques_group(material: bpy.types.Material, harmonics: int) -> bpy.types.Nod
     local = vector_math(group, "SUBTRACT", position, center)
     local_xyz = _xyz(group, local)
     angle = math(group, "ARCTAN2", math(group, "MULTIPLY", output(local_xyz, "Y"), -1.0), output(local_xyz, "X"))
-    outer = math(group, "GREATER_THAN", math(group, "DIVIDE", output(vector_math(group, "LENGTH", local), "Value"), radius), 1.5)
+    relative = math(group, "DIVIDE", output(vector_math(group, "LENGTH", local), "Value"), radius)
+    outer = math(group, "GREATER_THAN", relative, 1.5)  # a fringe ring's outer edge
+    # the signed distance to the outline in edge widths (softness * radius), interpolated across the faces:
+    # 0 on the outline, -1/softness at the centre, Margin at a fringe's outer edge
+    inverse_softness = math(group, "DIVIDE", -1.0, math(group, "MAXIMUM", _named(group, "softness"), 0.01))
+    signed_w = math(group, "MULTIPLY_ADD", math(group, "LESS_THAN", relative, 0.5), inverse_softness, math(group, "MULTIPLY", outer, output(group_in, "Margin")))
+    realized = _store(group, realized, "signed_w", signed_w)
     factor: Any = math(group, "MULTIPLY", math(group, "MULTIPLY", output(group_in, "Margin"), _named(group, "softness")), outer)
     factor = math(group, "ADD", factor, 1.0)
     for k in range(2, harmonics + 2):
@@ -195,8 +201,9 @@ def plaques_group(material: bpy.types.Material, harmonics: int) -> bpy.types.Nod
         term = math(group, "MULTIPLY", _named(group, f"fourier_a{k}"), math(group, "COSINE", kt))
         term = math(group, "MULTIPLY_ADD", _named(group, f"fourier_b{k}"), math(group, "SINE", kt), term)
         factor = math(group, "MULTIPLY_ADD", term, output(group_in, "Irregularity Scale"), factor)
+    # rim and ring points at relative radius 1 (or 2, a ring's outer edge) move to the outline (plus margin)
     scaled = add(group, "ShaderNodeVectorMath", operation="SCALE")
-    feed(group, scaled, Vector=local, Scale=factor)
+    feed(group, scaled, Vector=local, Scale=math(group, "DIVIDE", factor, math(group, "MAXIMUM", relative, 1e-6)))
     outline = vector_math(group, "ADD", center, scaled)
 
     # clip to the well: points beyond the well's radius are pulled back onto its circle

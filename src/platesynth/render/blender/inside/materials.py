@@ -94,24 +94,41 @@ def _smoothstep(tree: bpy.types.NodeTree, value: Any, low: Any, high: Any) -> bp
     return output(feed(tree, node, Value=value, From_Min=low, From_Max=high, To_Min=0.0, To_Max=1.0), "Result")
 
 
-def stain_group(with_lysis: bool = True) -> bpy.types.NodeTree:
-    """Shader group ``platesynth.stain``: the monolayer's transmittance at a point of a well.
+def transmittance_group() -> bpy.types.NodeTree:
+    """Shader group ``platesynth.transmittance``: ``T = t + (1 - t) * stain ** density`` per channel (Beer-Lambert
+    with the stain's colour as the transmittance at density 1; ``t``, the translucency, passes unabsorbed)."""
+    group = bpy.data.node_groups.new("platesynth.transmittance", "ShaderNodeTree")
+    for name, kind in (("Density", "NodeSocketFloat"), ("Stain Colour", "NodeSocketColor"), ("Translucency", "NodeSocketFloat")):
+        group.interface.new_socket(name=name, in_out="INPUT", socket_type=kind)
+    group.interface.new_socket(name="Transmittance", in_out="OUTPUT", socket_type="NodeSocketColor")
+    g_in, g_out = add(group, "NodeGroupInput"), add(group, "NodeGroupOutput")
+    channels = feed(group, add(group, "ShaderNodeSeparateColor"), Color=output(g_in, "Stain Colour"))
+    translucency = output(g_in, "Translucency")
+    opaque = math(group, "SUBTRACT", 1.0, translucency)
+    combined = add(group, "ShaderNodeCombineColor")
+    for channel in ("Red", "Green", "Blue"):
+        absorbed = math(group, "POWER", math(group, "MAXIMUM", output(channels, channel), 1e-3), output(g_in, "Density"))
+        feed(group, combined, **{channel: math(group, "MULTIPLY_ADD", absorbed, opaque, translucency)})
+    link(group, combined, g_out.inputs["Transmittance"])
+    return group
+
+
+def stain_group(transmittance: bpy.types.NodeTree, with_lysis: bool = True) -> bpy.types.NodeTree:
+    """Shader group ``platesynth.stain``: the monolayer's density and transmittance at a point of a well.
 
     The density follows the raster renderer's model: the well's density with low-frequency unevenness, an
     elongated darker centre, a thinner band along the rim and high-frequency drying texture; lysed wells keep
-    fibrous remnants, emptied wells nothing; ``Clearing`` removes a fraction (plaques, scratches) and ``Extra``
-    adds density (specks). Transmittance ``T = t + (1 - t) * stain ** density`` with ``t`` the translucency.
-    Outputs ``Transmittance`` (with ``Clearing`` and ``Extra``) and ``Intact`` (without). ``with_lysis=False``
-    leaves out the lysed wells' remnant texture (a scene without lysed wells need not pay for it).
+    fibrous remnants, emptied wells nothing. ``with_lysis=False`` leaves out the lysed wells' remnant texture
+    (a scene without lysed wells need not pay for it).
     """
     group = bpy.data.node_groups.new("platesynth.stain", "ShaderNodeTree")
     sockets = [("Offset", "NodeSocketVector"), ("Well Radius", "NodeSocketFloat"), ("Stain Colour", "NodeSocketColor")]
     sockets += [(name, "NodeSocketFloat") for name in PLATE_STAIN_INPUTS + WELL_ATTRIBUTES]
-    sockets += [("Centre Offset", "NodeSocketVector"), ("Clearing", "NodeSocketFloat"), ("Extra", "NodeSocketFloat")]
+    sockets += [("Centre Offset", "NodeSocketVector")]
     for name, kind in sockets:
         group.interface.new_socket(name=name, in_out="INPUT", socket_type=kind)
+    group.interface.new_socket(name="Density", in_out="OUTPUT", socket_type="NodeSocketFloat")
     group.interface.new_socket(name="Transmittance", in_out="OUTPUT", socket_type="NodeSocketColor")
-    group.interface.new_socket(name="Intact", in_out="OUTPUT", socket_type="NodeSocketColor")
     g_in, g_out = add(group, "NodeGroupInput"), add(group, "NodeGroupOutput")
     inp = {name: output(g_in, name) for name, _ in sockets}
 
@@ -144,19 +161,17 @@ def stain_group(with_lysis: bool = True) -> bpy.types.NodeTree:
         remnant = math(group, "MULTIPLY", math(group, "MINIMUM", math(group, "MAXIMUM", remnant, 0.0), 1.0), 0.45)
         keep = math(group, "MULTIPLY_ADD", inp["well_lysed"], math(group, "SUBTRACT", remnant, 1.0), 1.0)
         density = math(group, "MULTIPLY", density, keep)
-    intact = math(group, "MULTIPLY", density, math(group, "SUBTRACT", 1.0, inp["well_emptied"]))
-    changed = math(group, "MULTIPLY", intact, math(group, "SUBTRACT", 1.0, inp["Clearing"]))
-    changed = math(group, "MAXIMUM", math(group, "ADD", changed, inp["Extra"]), 0.0)
-
-    channels = feed(group, add(group, "ShaderNodeSeparateColor"), Color=inp["Stain Colour"])
-    opaque = math(group, "SUBTRACT", 1.0, inp["Translucency"])
-    for socket, density in (("Transmittance", changed), ("Intact", intact)):
-        combined = add(group, "ShaderNodeCombineColor")
-        for channel in ("Red", "Green", "Blue"):
-            absorbed = math(group, "POWER", math(group, "MAXIMUM", output(channels, channel), 1e-3), density)
-            feed(group, combined, **{channel: math(group, "MULTIPLY_ADD", absorbed, opaque, inp["Translucency"])})
-        link(group, combined, g_out.inputs[socket])
+    density = math(group, "MAXIMUM", math(group, "MULTIPLY", density, math(group, "SUBTRACT", 1.0, inp["well_emptied"])), 0.0)
+    link(group, density, g_out.inputs["Density"])
+    link(group, _transmittance(group, transmittance, density, inp["Stain Colour"], inp["Translucency"]), g_out.inputs["Transmittance"])
     return group
+
+
+def _transmittance(tree: bpy.types.NodeTree, group: bpy.types.NodeTree, density: Any, colour: Any, translucency: Any) -> bpy.types.NodeSocket:
+    node = add(tree, "ShaderNodeGroup")
+    node.node_tree = group
+    feed(tree, node, Density=density, Stain_Colour=colour, Translucency=translucency)
+    return output(node, "Transmittance")
 
 
 class StainInputs:
@@ -188,11 +203,11 @@ def _plate_offset(tree: bpy.types.NodeTree) -> bpy.types.Node:
     return feed(tree, flip, Vector=world_offset, Vector_1=(1.0, -1.0, 0.0))
 
 
-def _stain_node(tree: bpy.types.NodeTree, group: bpy.types.NodeTree, shared: Mapping[str, Any], offset: Any, clearing: Any = 0.0, extra: Any = 0.0) -> bpy.types.Node:
-    """The stain group fed from the geometry's attributes (wells and plaques carry the same ones)."""
+def _stain_node(tree: bpy.types.NodeTree, group: bpy.types.NodeTree, shared: Mapping[str, Any], offset: Any) -> bpy.types.Node:
+    """The stain group fed from the well's attributes."""
     node = add(tree, "ShaderNodeGroup")
     node.node_tree = group
-    inputs: dict[str, Any] = dict(shared) | {"Offset": offset, "Clearing": clearing, "Extra": extra}
+    inputs: dict[str, Any] = {key: value for key, value in shared.items() if key in node.inputs} | {"Offset": offset}
     inputs |= {name: _attribute(tree, name) for name in WELL_ATTRIBUTES}
     inputs["Centre Offset"] = _attribute(tree, "well_centre_offset", "Vector")
     for key, value in inputs.items():
@@ -204,78 +219,74 @@ def _stain_node(tree: bpy.types.NodeTree, group: bpy.types.NodeTree, shared: Map
     return node
 
 
-def _ratio(tree: bpy.types.NodeTree, stain_node: bpy.types.Node) -> bpy.types.NodeSocket:
-    """Changed over intact transmittance: what a film over the monolayer must pass for the light to see the
-    changed stain."""
+def _change_ratio(tree: bpy.types.NodeTree, transmittance: bpy.types.NodeTree, stain: StainInputs, clearing: Any, extra: Any = 0.0) -> bpy.types.NodeSocket:
+    """What a film over the monolayer must pass so that the light sees its stain changed: the transmittance
+    of the well's nominal density with ``clearing`` removed and ``extra`` added, over that of the nominal
+    density. (The nominal density, not the local one, keeps films cheap: the monolayer's texture stays under
+    them at full contrast.)"""
+    shared = stain.sockets(tree)
+    nominal = _attribute(tree, "well_density")
+    changed = math(tree, "MULTIPLY_ADD", nominal, math(tree, "SUBTRACT", 1.0, clearing), extra)
     ratio = add(tree, "ShaderNodeMix", data_type="RGBA", blend_type="DIVIDE", clamp_result=False)
-    feed(tree, ratio, Factor=1.0, A=output(stain_node, "Transmittance"), B=output(stain_node, "Intact"))
+    feed(
+        tree,
+        ratio,
+        Factor=1.0,
+        A=_transmittance(tree, transmittance, changed, shared["Stain Colour"], shared["Translucency"]),
+        B=_transmittance(tree, transmittance, nominal, shared["Stain Colour"], shared["Translucency"]),
+    )
     return output(ratio, "Result")
 
 
-def monolayer_material(group: bpy.types.NodeTree, stain: StainInputs) -> bpy.types.Material:
-    """The stained cell layer on each well floor (a thin absorbing film)."""
+def monolayer_material(group: bpy.types.NodeTree, stain: StainInputs, tint_rgb: tuple[float, float, float], transmittance: float) -> bpy.types.Material:
+    """The stained cell layer on each well floor: a thin absorbing film, times the plate's plastic under it."""
     material, tree, out = _new_material("platesynth.monolayer")
-    transmittance = output(_stain_node(tree, group, stain.sockets(tree), _plate_offset(tree)), "Intact")
-    link(tree, feed(tree, add(tree, "ShaderNodeBsdfTransparent"), Color=transmittance), out)
+    stain_transmittance = output(_stain_node(tree, group, stain.sockets(tree), _plate_offset(tree)), "Transmittance")
+    film = add(tree, "ShaderNodeMix", data_type="RGBA", blend_type="MULTIPLY", clamp_result=False)
+    feed(tree, film, Factor=1.0, A=stain_transmittance, B=_plastic_colour(tree, tint_rgb, transmittance))
+    link(tree, feed(tree, add(tree, "ShaderNodeBsdfTransparent"), Color=output(film, "Result")), out)
     return material
 
 
-def _outline_distance(tree: bpy.types.NodeTree, harmonics: int) -> bpy.types.NodeSocket:
-    """Signed distance (mm, negative inside) from the shading point to its plaque's Fourier outline."""
-    coordinates = add(tree, "ShaderNodeTexCoord")
-    local = vector_math(tree, "SUBTRACT", output(coordinates, "Object"), _attribute(tree, "center", "Vector"))
-    xy = feed(tree, add(tree, "ShaderNodeSeparateXYZ"), Vector=local)
-    du, dv = output(xy, "X"), math(tree, "MULTIPLY", output(xy, "Y"), -1.0)  # plate y points down
-    dist = math(tree, "SQRT", math(tree, "ADD", math(tree, "MULTIPLY", du, du), math(tree, "MULTIPLY", dv, dv)))
-    angle = math(tree, "ARCTAN2", dv, du)
-    outline: Any = 1.0
-    for k in range(2, harmonics + 2):
-        kt = math(tree, "MULTIPLY", angle, float(k))
-        term = math(tree, "MULTIPLY", _attribute(tree, f"fourier_a{k}"), math(tree, "COSINE", kt))
-        term = math(tree, "MULTIPLY_ADD", _attribute(tree, f"fourier_b{k}"), math(tree, "SINE", kt), term)
-        outline = math(tree, "ADD", outline, term)
-    return output(math(tree, "SUBTRACT", dist, math(tree, "MULTIPLY", _attribute(tree, "radius"), outline)), "Value")
+def _plastic_colour(tree: bpy.types.NodeTree, tint_rgb: tuple[float, float, float], transmittance: float) -> bpy.types.NodeSocket:
+    colour = add(tree, "ShaderNodeVectorMath", operation="SCALE")
+    feed(tree, colour, Vector=_rgb(tree, "Plastic Tint", tint_rgb), Scale=_value(tree, "Plastic Transmittance", transmittance))
+    return output(colour, "Vector")
 
 
-def plaque_material(group: bpy.types.NodeTree, stain: StainInputs, harmonics: int, first_depth: int) -> bpy.types.Material:
+def plaque_material(transmittance: bpy.types.NodeTree, stain: StainInputs) -> bpy.types.Material:
     """A plaque: the stain cleared by ``clearness`` with a smooth edge ``softness * radius`` wide centred on the
     outline, and a residual of stain left inside (as the raster renderer draws it).
 
-    The light passing a plaque and then the monolayer must see the cleared stain, so the plaque's Transparent
-    colour is the ratio of the cleared to the intact transmittance. Only the plaque surface nearest the camera
-    clears (``Transparent Depth == First Plaque Depth``), so stacked plaques clear once.
+    The geometry's ``signed_w`` attribute is the signed distance to the outline in edge widths (negative
+    inside). Only the plaque surface nearest the camera clears (``Transparent Depth == First Plaque Depth``,
+    0: nothing transparent lies in front of the plaques), so stacked plaques clear once.
     """
     material, tree, out = _new_material("platesynth.plaque")
-    signed = _outline_distance(tree, harmonics)
-    width = math(tree, "MAXIMUM", math(tree, "MULTIPLY", _attribute(tree, "softness"), _attribute(tree, "radius")), 0.01)
-    edge = _smoothstep(tree, math(tree, "SUBTRACT", 0.5, math(tree, "DIVIDE", signed, math(tree, "MULTIPLY", width, 2.0))), 0.0, 1.0)
-    offset = _plate_offset(tree)
-    residual_noise = _cell_noise(tree, offset, 0.12, math(tree, "ADD", _attribute(tree, "well_texture_seed"), 71.0))
+    edge = _smoothstep(tree, math(tree, "MULTIPLY_ADD", _attribute(tree, "signed_w"), -0.5, 0.5), 0.0, 1.0)
+    residual_noise = _cell_noise(tree, _plate_offset(tree), 0.12, math(tree, "ADD", _attribute(tree, "well_texture_seed"), 71.0))
     residual = math(tree, "MINIMUM", math(tree, "MAXIMUM", math(tree, "MULTIPLY_ADD", residual_noise, 0.25, 0.12), 0.0), 0.6)
     clearing = math(tree, "MULTIPLY", math(tree, "MULTIPLY", _attribute(tree, "clearness"), edge), math(tree, "SUBTRACT", 1.0, residual))
     path = add(tree, "ShaderNodeLightPath")
-    topmost = math(tree, "COMPARE", output(path, "Transparent Depth"), _value(tree, "First Plaque Depth", float(first_depth)), 0.5)
+    topmost = math(tree, "COMPARE", output(path, "Transparent Depth"), _value(tree, "First Plaque Depth", 0.0), 0.5)
     clearing = math(tree, "MULTIPLY", clearing, topmost)
-    stain_node = _stain_node(tree, group, stain.sockets(tree), offset, clearing)
-    link(tree, feed(tree, add(tree, "ShaderNodeBsdfTransparent"), Color=_ratio(tree, stain_node)), out)
+    link(tree, feed(tree, add(tree, "ShaderNodeBsdfTransparent"), Color=_change_ratio(tree, transmittance, stain, clearing)), out)
     return material
 
 
-def marks_material(group: bpy.types.NodeTree, stain: StainInputs) -> bpy.types.Material:
+def marks_material(transmittance: bpy.types.NodeTree, stain: StainInputs) -> bpy.types.Material:
     """Scratches and specks on the monolayer: each mark's ``mark_clearing`` (stain scraped off) and ``mark_extra``
     (density added) attributes change the stain of the well under it."""
     material, tree, out = _new_material("platesynth.marks")
-    stain_node = _stain_node(tree, group, stain.sockets(tree), _plate_offset(tree), _attribute(tree, "mark_clearing"), _attribute(tree, "mark_extra"))
-    link(tree, feed(tree, add(tree, "ShaderNodeBsdfTransparent"), Color=_ratio(tree, stain_node)), out)
+    ratio = _change_ratio(tree, transmittance, stain, _attribute(tree, "mark_clearing"), _attribute(tree, "mark_extra"))
+    link(tree, feed(tree, add(tree, "ShaderNodeBsdfTransparent"), Color=ratio), out)
     return material
 
 
 def plastic_material(name: str, tint_rgb: tuple[float, float, float], transmittance: float, rim_darkness: float) -> bpy.types.Material:
     """Polystyrene: tinted see-through plastic whose grazing faces (the walls seen edge-on) look dark."""
     material, tree, out = _new_material(name)
-    colour = add(tree, "ShaderNodeVectorMath", operation="SCALE")
-    feed(tree, colour, Vector=_rgb(tree, "Plastic Tint", tint_rgb), Scale=_value(tree, "Plastic Transmittance", transmittance))
-    clear = feed(tree, add(tree, "ShaderNodeBsdfTransparent"), Color=output(colour, "Vector"))
+    clear = feed(tree, add(tree, "ShaderNodeBsdfTransparent"), Color=_plastic_colour(tree, tint_rgb, transmittance))
     dark = feed(tree, add(tree, "ShaderNodeBsdfDiffuse"), Color=(0.02, 0.02, 0.025, 1.0))
     facing = feed(tree, add(tree, "ShaderNodeLayerWeight"), Blend=0.5)
     outline = math(tree, "MULTIPLY", math(tree, "POWER", output(facing, "Facing"), 4.0), _value(tree, "Rim Darkness", rim_darkness))
@@ -287,11 +298,14 @@ def glow_material(name: str, rgb: tuple[float, float, float], strength: float, t
     """A self-lit surface: the light box's panel (``strength`` = its brightness), its frame, a desk; with
     low-frequency texture of amplitude ``texture`` (8 mm blotches)."""
     material, tree, out = _new_material(name)
-    coordinates = add(tree, "ShaderNodeTexCoord")
-    grain = _unit_noise(tree, output(coordinates, "Object"), 8.0, seed)
-    gain = math(tree, "MAXIMUM", math(tree, "MULTIPLY_ADD", grain, _value(tree, "Texture", texture), 1.0), 0.0)
     emit = feed(tree, add(tree, "ShaderNodeEmission"), Color=_rgb(tree, "Colour", rgb))
-    link(tree, math(tree, "MULTIPLY", gain, _value(tree, "Strength", strength)), emit.inputs["Strength"])
+    strength_socket: Any = _value(tree, "Strength", strength)
+    if texture > 0:
+        coordinates = add(tree, "ShaderNodeTexCoord")
+        grain = _unit_noise(tree, output(coordinates, "Object"), 8.0, seed)
+        gain = math(tree, "MAXIMUM", math(tree, "MULTIPLY_ADD", grain, _value(tree, "Texture", texture), 1.0), 0.0)
+        strength_socket = math(tree, "MULTIPLY", gain, strength_socket)
+    link(tree, strength_socket, emit.inputs["Strength"])
     link(tree, emit, out)
     material.cycles.emission_sampling = "NONE"  # seen directly only: it lights nothing (no diffuse bounces either)
     return material

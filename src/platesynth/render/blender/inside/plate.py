@@ -1,8 +1,8 @@
-"""The plate's plastic as geometry nodes: the body (deck with well holes, tapered well walls, outer wall) and
-the bottom sheet under the well floors.
+"""The plate's plastic as geometry nodes: a deck with one hole per well, tapered well walls, the outer wall.
 
-Heights are in the world frame: well floors at ``z = 0``, the bottom sheet at ``z = -Floor Thickness``, the
-walls' top edge at ``z = Well Depth`` with inner radius ``Well Radius + Taper`` (as the raster renderer draws it).
+Heights are in the world frame: well floors at ``z = 0`` (the plate's bottom ``Floor Thickness`` below), the
+walls' top edge and the deck at ``z = Well Depth`` with inner radius ``Well Radius + Taper`` (as the raster
+renderer draws it). The plastic under the floors is folded into the monolayer's material.
 """
 
 from __future__ import annotations
@@ -24,7 +24,6 @@ PLATE_INPUTS = [
     ("Wall", "NodeSocketFloat", 1.3),
     ("Well Depth", "NodeSocketFloat", 17.5),
     ("Floor Thickness", "NodeSocketFloat", 1.0),
-    ("Deck Thickness", "NodeSocketFloat", 1.5),
     ("Segments", "NodeSocketInt", 128),
 ]
 """The plate groups' modifier inputs: name, socket type, default (mm)."""
@@ -64,9 +63,7 @@ def plate_group(material: bpy.types.Material) -> bpy.types.NodeTree:
     link(group, outline, deck_curves)
     link(group, _on_points(group, points, hole), deck_curves)
     deck = feed(group, add(group, "GeometryNodeFillCurve"), Curve=deck_curves, Mode="N-gons")
-    up = feed(group, add(group, "ShaderNodeCombineXYZ"), Z=output(group_in, "Deck Thickness"))
-    deck = feed(group, add(group, "GeometryNodeExtrudeMesh"), Mesh=deck, Offset=up, Offset_Scale=1.0)
-    deck = _moved(group, output(deck, "Mesh"), 0.0, 0.0, math(group, "SUBTRACT", depth, output(group_in, "Deck Thickness")))
+    deck = _moved(group, deck, 0.0, 0.0, depth)  # one sheet: seen through, a second face would only cost time
 
     # the wells' walls: open cones from the floor's radius up to the top edge's
     wall = add(group, "GeometryNodeMeshCone", fill_type="NONE")
@@ -87,11 +84,3 @@ def plate_group(material: bpy.types.Material) -> bpy.types.NodeTree:
     link(group, feed(group, add(group, "GeometryNodeSetMaterial"), Geometry=body, Material=material), group_out)
     return group
 
-
-def plate_bottom_group(material: bpy.types.Material) -> bpy.types.NodeTree:
-    """Geometry nodes making the plate's bottom: one flat sheet over the footprint under the well floors."""
-    group, group_in, group_out = new_group("platesynth.plate_bottom", PLATE_INPUTS)
-    sheet = feed(group, add(group, "GeometryNodeFillCurve"), Curve=_outline(group, group_in), Mode="N-gons")
-    sheet = _moved(group, sheet, 0.0, 0.0, math(group, "MULTIPLY", output(group_in, "Floor Thickness"), -1.0))
-    link(group, feed(group, add(group, "GeometryNodeSetMaterial"), Geometry=sheet, Material=material), group_out)
-    return group

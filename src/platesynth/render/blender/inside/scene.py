@@ -55,16 +55,23 @@ def build(description: Mapping[str, Any]) -> dict[str, bpy.types.Object]:
     well_radius = float(plate_data["well_radius_mm"])
     toward_camera = float(view["toward_camera"])
     stain = materials.StainInputs(tuple(view["stain_linear_rgb"]), well_radius, scene_data["stain"])
-    stain_group = materials.stain_group(with_lysis=any(w["lysed"] for w in scene_data["wells"]))
+    transmittance = materials.transmittance_group()
+    stain_group = materials.stain_group(transmittance, with_lysis=any(w["lysed"] for w in scene_data["wells"]))
     objects: dict[str, bpy.types.Object] = {}
+
+    look = scene_data["plate_look"]
+    # the plate's plastic tints and dims all light passing the plate once: in the body's material where the
+    # camera looks through the deck and walls, in the monolayer's inside the wells (no separate bottom sheet:
+    # one transparent surface less for every ray)
+    plastic = (tuple(look["tint_rgb"]), float(look["transmittance"]))
 
     wells = scene_data["wells"]
     well_attributes = _well_attributes(wells, int(scene_data["seed"]))
     well_points = geometry.point_cloud("platesynth.wells", _with_z(_world_xy([w["center_mm"] for w in wells]), 0.0), well_attributes)
-    geometry.add_modifier(well_points, geometry.wells_group(materials.monolayer_material(stain_group, stain)), {"Well Radius": well_radius})
+    monolayer = materials.monolayer_material(stain_group, stain, *plastic)
+    geometry.add_modifier(well_points, geometry.wells_group(monolayer), {"Well Radius": well_radius})
     objects["wells"] = _tag(well_points, "both")
 
-    look = scene_data["plate_look"]
     plate_inputs = {
         "Length": plate_data["length_mm"],
         "Width": plate_data["width_mm"],
@@ -75,23 +82,16 @@ def build(description: Mapping[str, Any]) -> dict[str, bpy.types.Object]:
         "Well Depth": plate_data["well_depth_mm"],
         "Floor Thickness": view["floor_thickness_mm"],
     }
-    body_material = materials.plastic_material("platesynth.plastic_body", (1.0, 1.0, 1.0), 1.0, float(look["rim_darkness"]))
-    # built from the well centres too, without the wells' attributes (its walls must not show well ids)
+    body_material = materials.plastic_material("platesynth.plastic", *plastic, float(look["rim_darkness"]))
     body = geometry.point_cloud("platesynth.plate_body", _with_z(_world_xy([w["center_mm"] for w in wells]), 0.0), {})
     geometry.add_modifier(body, plate.plate_group(body_material), plate_inputs)
     objects["plate_body"] = _tag(body, "both")
-    sheet_material = materials.plastic_material("platesynth.plastic_bottom", tuple(look["tint_rgb"]), float(look["transmittance"]), 0.0)
-    bottom = bpy.data.objects.new("platesynth.plate_bottom", bpy.data.meshes.new("platesynth.plate_bottom"))
-    bpy.context.scene.collection.objects.link(bottom)
-    geometry.add_modifier(bottom, plate.plate_bottom_group(sheet_material), plate_inputs)
-    objects["plate_bottom"] = _tag(bottom, "image")
 
     plaques = scene_data["plaques"]
     harmonics = max((len(p["fourier"]) for p in plaques), default=0)
     plaque_attributes = _plaque_attributes(plaques, wells, well_attributes, harmonics)
     plaque_xyz = _with_z(_world_xy([p["center_mm"] for p in plaques]), 0.0)
-    first_depth = 1 if toward_camera < 0 else 0  # seen from below, the bottom sheet lies in front of the plaques
-    plaque_group = geometry.plaques_group(materials.plaque_material(stain_group, stain, harmonics, first_depth), harmonics)
+    plaque_group = geometry.plaques_group(materials.plaque_material(transmittance, stain), harmonics)
     step = toward_camera * PLAQUE_LAYER_STEP_MM
     # outlines (the masks) on top, in drawing order; their fuzzy fringes under all of them
     cores = geometry.point_cloud("platesynth.plaques", plaque_xyz, plaque_attributes)
@@ -102,7 +102,7 @@ def build(description: Mapping[str, Any]) -> dict[str, bpy.types.Object]:
     geometry.add_modifier(fringes, plaque_group, {"Well Radius": well_radius, "Layer Step": step, "Fringe": True, "Margin": 1.0})
     objects["plaque_fringes"] = _tag(fringes, "image")
 
-    _artifacts(scene_data, view, stain_group, stain, wells, well_attributes, objects)
+    _artifacts(scene_data, view, transmittance, stain, wells, well_attributes, objects)
     _backdrop(scene_data, view, objects)
     _camera(view)
     world = bpy.data.worlds.new("platesynth.world")
@@ -157,7 +157,7 @@ def _plaque_attributes(plaques: Sequence[Mapping[str, Any]], wells: Sequence[Map
 def _artifacts(
     scene_data: Mapping[str, Any],
     view: Mapping[str, Any],
-    stain_group: bpy.types.NodeTree,
+    transmittance: bpy.types.NodeTree,
     stain: materials.StainInputs,
     wells: Sequence[Mapping[str, Any]],
     well_attributes: Mapping[str, np.ndarray],
@@ -186,7 +186,7 @@ def _artifacts(
     if lines:
         attributes = _per_well(owners, wells, well_attributes) | {"mark_clearing": np.array(clearing), "mark_extra": np.array(extra)}
         marks = geometry.strips("platesynth.marks", lines, halves, away * 0.3, attributes)
-        marks.data.materials.append(materials.marks_material(stain_group, stain))
+        marks.data.materials.append(materials.marks_material(transmittance, stain))
         objects["marks"] = _tag(marks, "image")
 
     ink = materials.ink_material()
@@ -289,7 +289,9 @@ def _camera(view: Mapping[str, Any]) -> None:
 
 
 def show_pass(which: str) -> None:
-    """Show the objects of the ``"image"`` or ``"mask"`` pass to the renderer and hide the others."""
+    """Show the objects of the ``"image"`` or ``"mask"`` pass to the camera and hide the others (by ray
+    visibility: the geometry stays loaded between the passes)."""
     for obj in bpy.context.scene.objects:
-        obj.hide_render = obj.get(PASS_PROPERTY, "both") not in ("both", which)
+        if obj.type != "CAMERA":
+            obj.visible_camera = obj.get(PASS_PROPERTY, "both") in ("both", which)
 
