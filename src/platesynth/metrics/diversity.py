@@ -74,6 +74,15 @@ def _sum_count_log_count(counts: np.ndarray, n_positions: int, count_log_count: 
     return total
 
 
+@numba.njit(cache=True, nogil=True)
+def _add_values_and_squares(sums: np.ndarray, sums_of_squares: np.ndarray, gray: np.ndarray) -> None:
+    """``sums += gray`` and ``sums_of_squares += gray**2`` in one pass (int64 sums)."""
+    for position in range(gray.size):
+        value = np.int64(gray[position])
+        sums[position] += value
+        sums_of_squares[position] += value * value
+
+
 def grayscale(image: np.ndarray, size: tuple[int, int] | None = None) -> np.ndarray:
     """Convert an image to 8-bit grayscale as Pillow's ``convert("L")`` does, optionally resizing it.
 
@@ -254,10 +263,7 @@ class BrightnessVariability(_PerPositionMetric):
         if self._sum is None:
             self._sum = np.zeros(gray.shape, dtype=np.int64)
             self._sum_of_squares = np.zeros(gray.shape, dtype=np.int64)
-        values = gray.astype(np.int64)
-        self._sum += values
-        values *= values
-        self._sum_of_squares += values
+        _add_values_and_squares(self._sum.ravel(), self._sum_of_squares.ravel(), gray.ravel())
         self.n_images += 1
 
     def variance_map(self) -> np.ndarray:

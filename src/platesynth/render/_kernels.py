@@ -166,7 +166,7 @@ def draw_capsules(hinv, segments, values, boxes, pixel_mm, out):
 
 @njit(cache=True, nogil=True, parallel=True, fastmath=True)
 def shade(
-    hinv, scalars, backdrop_rgb, desk_rgb, panel, blots, wells, relief_map, ink, texels_per_mm, low_grid, low_cell_mm,
+    hinv, scalars, desk_rgb, panel, blots, wells, relief_map, ink, texels_per_mm, low_grid, low_cell_mm,
     fibre_grid, fibre_cell_mm, desk_grid, desk_cell_px, fine_tile, fine_cell_mm, residual_tile, residual_cell_mm,
     clear, scratched, specks, absorbance, gains, gamma_lut, out, wells_mask,
 ):
@@ -222,10 +222,10 @@ def shade(
                     frame = _clip01((to_edge + frame_mm) / pixel_mm + 0.5) - lit
                     tex = 1.0 + desk_texture * _grid(desk_grid, (x + 0.5) / desk_cell_px, (y + 0.5) / desk_cell_px)
                     for c in range(3):
-                        rgb[c] = desk_rgb[c] * tex * (1.0 - lit - frame) + lit * glow * backdrop_rgb[c] + frame * 0.55
+                        rgb[c] = desk_rgb[c] * tex * (1.0 - lit - frame) + lit * glow + frame * 0.55
                 else:
                     for c in range(3):
-                        rgb[c] = glow * backdrop_rgb[c]
+                        rgb[c] = glow
                 if ruler:
                     rw = 22.0
                     along = -1.0

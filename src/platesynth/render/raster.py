@@ -4,8 +4,9 @@ Every pixel centre is mapped back to plate coordinates (mm) through the camera's
 evaluated in plate space, so the masks are exact by construction (a pixel belongs to a well or a plaque when
 its centre lies inside it) and the image is anti-aliased from the same signed distances. Light is composed in
 linear RGB (light box or desk, plastic, Beer-Lambert absorption by the stained monolayer), then blurred,
-gamma-encoded and post-processed. Low-frequency textures are drawn on coarse grids and upsampled; per-object
-work (plaques, scratches, specks) runs in numba kernels inside each object's bounding box.
+gamma-encoded and post-processed. Noise comes from coarse grids and small periodic tiles sampled in plate space;
+per-object work (plaques, scratches, specks) runs in numba kernels inside each object's bounding box, and the
+per-pixel shading is one fused, row-parallel numba kernel (:func:`platesynth.render._kernels.shade`).
 """
 
 from __future__ import annotations
@@ -49,16 +50,6 @@ class View:
         x = (h[0, 0] * points[..., 0] + h[0, 1] * points[..., 1] + h[0, 2]) / w
         y = (h[1, 0] * points[..., 0] + h[1, 1] * points[..., 1] + h[1, 2]) / w
         return np.stack([x, y], axis=-1)
-
-    def plate_coordinates(self) -> tuple[np.ndarray, np.ndarray]:
-        """Plate coordinates ``u, v`` (mm, float32, ``(H, W)``) of every pixel centre."""
-        h = self.px_to_plate
-        xs = np.arange(self.width, dtype=np.float64)[None, :] + 0.5
-        ys = np.arange(self.height, dtype=np.float64)[:, None] + 0.5
-        w = h[2, 0] * xs + h[2, 1] * ys + h[2, 2]
-        u = (h[0, 0] * xs + h[0, 1] * ys + h[0, 2]) / w
-        v = (h[1, 0] * xs + h[1, 1] * ys + h[1, 2]) / w
-        return u.astype(np.float32), v.astype(np.float32)
 
 
 def camera_view(scene: Scene, width: int, height: int) -> View:
@@ -312,7 +303,7 @@ def render_raster(scene: Scene, size: tuple[int, int] = (1024, 768)) -> RenderRe
     image = np.empty((height, width, 3), dtype=np.float32)
     wells_mask = np.zeros((height, width), dtype=np.uint8)
     kernels.shade(
-        hinv, scalars, np.ones(3), np.asarray(srgb_to_linear(bg.color_rgb)), np.asarray(bg.panel_mm, dtype=np.float64),
+        hinv, scalars, np.asarray(srgb_to_linear(bg.color_rgb)), np.asarray(bg.panel_mm, dtype=np.float64),
         blots, well_rows, relief, ink, k, low_grid, low_cell, fibre_grid, fibre_cell, desk_grid, desk_cell_px,
         fine_tile, fine_cell, residual_tile, residual_cell, clear, scratched, specks, absorbance, gains, _gamma_lut(),
         image, wells_mask,

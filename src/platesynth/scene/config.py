@@ -329,7 +329,7 @@ class WellsConfig(Section):
 class PlaquesConfig(Section):
     """Plaque counts (a dilution series across columns), sizes and shapes."""
 
-    negative_plate: float = probability(0.4, "chance the plate holds no plaque at all")
+    negative_plate: float = probability(0.5, "chance the plate holds no plaque at all")
     top_count: Dist = number({"loguniform": [20, 3000]}, 0, 100000, "plaques", "mean count in the least diluted column")
     dilution_factor: Dist = number({"choice": [10, 5, 3], "weights": [0.7, 0.2, 0.1]}, 1.0, 100.0, "",
                                    "dilution from one column to the next")

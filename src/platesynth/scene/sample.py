@@ -112,9 +112,11 @@ def sample_scene(config: SceneConfig, seed: int) -> Scene:
     c = config
 
     plate = plate_geometry(c.plate.draw("format", rng))
+    transmittance = c.plate.draw("transmittance", rng)
+    tint = c.plate.draw("tint", rng)  # blue plastic passes less red than green
     plate_look = PlateLook(
-        transmittance=c.plate.draw("transmittance", rng),
-        tint_rgb=tuple(np.round([1.0 - 1.5 * (tint := c.plate.draw("tint", rng)), 1.0 - 0.6 * tint, 1.0], 4)),
+        transmittance=transmittance,
+        tint_rgb=(round(1.0 - 1.5 * tint, 4), round(1.0 - 0.6 * tint, 4), 1.0),
         rim_darkness=c.plate.draw("rim_darkness", rng),
         label_strength=c.plate.draw("label_strength", rng),
     )

@@ -38,7 +38,7 @@ from platesynth.scene.params import Scene
 
 ENGINES = ("CYCLES", "BLENDER_EEVEE")
 DEVICES = ("auto", "CPU", "GPU")
-DEFAULT_SAMPLES = 8
+DEFAULT_SAMPLES = 4
 
 
 def bpy_available() -> bool:
@@ -87,12 +87,13 @@ def render_blender(
     scene: Scene,
     size: tuple[int, int] = (1024, 768),
     *,
-    samples: int = DEFAULT_SAMPLES,
+    samples: int | None = None,
     engine: str = "CYCLES",
     device: str = "auto",
     denoise: bool = False,
     timeout: float | None = None,
     pool: BlenderWorkerPool | None = None,
+    stats: dict | None = None,
 ) -> RenderResult:
     """Draw ``scene`` with Blender: the image with ``samples`` samples per pixel, then exact masks.
 
@@ -100,12 +101,15 @@ def render_blender(
     ----------
     scene : a concrete scene (:func:`platesynth.scene.sample_scene`).
     size : (width, height) in pixels.
-    samples : Cycles samples per pixel (EEVEE: TAA samples) of the image pass.
+    samples : Cycles samples per pixel (EEVEE: TAA samples) of the image pass; default
+        ``$PLATESYNTH_BLENDER_SAMPLES`` or :data:`DEFAULT_SAMPLES`.
     engine : ``"CYCLES"`` or ``"BLENDER_EEVEE"`` (the mask pass always uses Cycles).
     device : ``"auto"`` (a CUDA/OptiX GPU where Cycles finds one, else the CPU), ``"CPU"`` or ``"GPU"``.
     denoise : denoise the image pass (OpenImageDenoise, fast quality).
     timeout : seconds one image may take (default: the pool's).
     pool : the worker pool to use (default: a process-wide pool started on first use, closed at exit).
+    stats : if given, filled with the worker's ``seconds`` and ``cpu_seconds`` (all threads) for this image,
+        its ``peak_rss_mb`` and the ``device`` used.
 
     Returns
     -------
@@ -121,6 +125,8 @@ def render_blender(
         Where bpy is missing, Blender raised (:class:`BlenderScriptError`) or its worker crashed or hung twice
         (:class:`BlenderWorkerError`, with Blender's log in ``log``).
     """
+    if samples is None:
+        samples = int(os.environ.get("PLATESYNTH_BLENDER_SAMPLES", DEFAULT_SAMPLES))
     width, height = _check(size, samples, engine, device)
     pool = pool or default_pool()
     out_dir = pool.new_output_dir()
@@ -135,6 +141,10 @@ def render_blender(
             timeout=timeout,
         )
         files = reply["files"]
+        if stats is not None:
+            stats.update(
+                seconds=reply.get("seconds"), cpu_seconds=reply.get("cpu_seconds"), peak_rss_mb=reply.get("peak_rss_mb"), device=files.get("device")
+            )
         try:
             image = read_image(files["image"])
         except ImageReadError as exc:

@@ -2,7 +2,7 @@
 
 It imports ``bpy`` once, then reads one JSON request per line on stdin and answers one JSON line on stdout:
 
-- ``{"op": "ping"}`` -> ``{"ok": true, "blender": "5.0.1", ...}``
+- ``{"op": "ping"}`` -> ``{"ok": true, "blender": "5.0.1", "pid": ..., "home": ...}``
 - ``{"op": "render", "scene": <description>, "options": {...}, "out_dir": DIR}`` -> ``{"ok": true, "files": {...}}``
   (see :func:`platesynth.render.blender.inside.render.render_to_files`)
 - ``{"op": "export", "scene": <description>, "options": {...}, "path": FILE}`` -> ``{"ok": true, "path": FILE}``
@@ -35,6 +35,11 @@ def _peak_rss_mb() -> float:
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
 
 
+def _cpu_seconds() -> float:
+    usage = resource.getrusage(resource.RUSAGE_SELF)
+    return usage.ru_utime + usage.ru_stime
+
+
 def handle(request: dict[str, Any]) -> dict[str, Any]:
     """Serve one request (inside Blender) and return the reply's payload."""
     from platesynth.render.blender.inside import render as inside_render
@@ -43,7 +48,7 @@ def handle(request: dict[str, Any]) -> dict[str, Any]:
     if op == "ping":
         import bpy
 
-        return {"blender": bpy.app.version_string, "pid": os.getpid()}
+        return {"blender": bpy.app.version_string, "pid": os.getpid(), "home": os.environ.get("HOME", "")}
     if op == "render":
         files = inside_render.render_to_files(request["scene"], request.get("options", {}), request["out_dir"])
         return {"files": files}
@@ -67,7 +72,7 @@ def main() -> None:
     for line in sys.stdin:
         if not line.strip():
             continue
-        started = time.perf_counter()
+        started, cpu_started = time.perf_counter(), _cpu_seconds()
         try:
             request = json.loads(line)
             if request.get("op") == "quit":
@@ -80,6 +85,7 @@ def main() -> None:
             sys.stderr.flush()
             reply = {"ok": False, "error": f"{type(exc).__name__}: {exc}", "traceback": text}
         reply["seconds"] = time.perf_counter() - started
+        reply["cpu_seconds"] = _cpu_seconds() - cpu_started  # all threads: what other load on the machine hardly changes
         reply["peak_rss_mb"] = _peak_rss_mb()
         send(reply)
 

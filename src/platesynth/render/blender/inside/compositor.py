@@ -1,6 +1,7 @@
 """Blender's compositor: the camera and post-processing effects on the image pass, and the mask pass's output.
 
-The image chain follows the raster renderer's order: in linear light exposure, vignetting and glare, then the
+The image chain follows the raster renderer's order: in linear light exposure and the light's colour
+(its colour temperature, normalised to its strongest channel), vignetting and glare, then the
 optical blur; then gamma encoding (1/2.2) and, on the encoded image, the enabled post-processing effects
 (brightness, white balance, clarity, motion blur, shadows, chromatic aberration, bloom, sharpening, sensor
 noise). Lengths given for 1024-pixel-wide images are scaled by ``px_scale``. Each effect's strength is a
@@ -121,6 +122,8 @@ def image_tree(scene_data: Mapping[str, Any], view: Mapping[str, Any], directory
 
     exposure = feed(tree, add(tree, "CompositorNodeExposure", name="Exposure EV"), Image=chain.image, Exposure=float(lighting["exposure_ev"]))
     chain.image = output(exposure, "Image")
+    gains = feed(tree, add(tree, "ShaderNodeCombineXYZ", name="Light Colour"), X=view["light_rgb"][0], Y=view["light_rgb"][1], Z=view["light_rgb"][2])
+    chain.image = chain.mix("MULTIPLY", output(gains, "Vector"))
 
     normalized = output(chain.coordinates(), "Normalized")
     xy = feed(tree, add(tree, "ShaderNodeSeparateXYZ"), Vector=normalized)
@@ -190,9 +193,12 @@ def _post(chain: _Chain, post: Mapping[str, Any], seed: int, px_scale: float, wi
             total = shifted if total is None else chain.mix("ADD", shifted, a=total)
         chain.image = chain.mix("MULTIPLY", (1.0 / (steps + 1),) * 3 + (1.0,), a=total)
     if (strength := enabled("shadows")) is not None:
+        # a field this smooth needs no full-resolution noise: evaluate it on a 1/16 image, the mix upsamples it
+        small = add(tree, "CompositorNodeScale")
+        feed(tree, small, Image=chain.image, X=1.0 / 16, Y=1.0 / 16)
+        small_coordinates = feed(tree, add(tree, "CompositorNodeImageCoordinates"), Image=output(small, "Image"))
         noise = add(tree, "ShaderNodeTexNoise", noise_dimensions="4D", name="Shadow Field")
-        coordinates = output(chain.coordinates(), "Normalized")
-        feed(tree, noise, Vector=coordinates, Scale=2.0, Detail=0.0, W=float(seed % 1000) + 0.5)
+        feed(tree, noise, Vector=output(small_coordinates, "Normalized"), Scale=2.0, Detail=0.0, W=float(seed % 1000) + 0.5)
         field = chain.math("MULTIPLY", chain.value("Shadows", strength), output(noise, "Factor"))
         chain.image = chain.mix("MULTIPLY", chain.gray(chain.math("SUBTRACT", 1.0, field)))
     if (strength := enabled("chromatic_aberration")) is not None:

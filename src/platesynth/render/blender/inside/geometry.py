@@ -112,7 +112,7 @@ def wells_group(material: bpy.types.Material) -> bpy.types.NodeTree:
     """Geometry nodes turning well-centre points into monolayer discs (one per well, plus random emptying).
 
     Inputs: ``Well Radius`` (mm), ``Floor Height`` (mm), ``Segments``, ``Empty Probability`` and ``Seed`` (extra
-    random emptying on top of the points' ``well_emptied`` attribute; 0 for a concrete scene). Point attributes are
+    random emptying on top of the emptied flag in the points' ``well_state`` attribute; 0 for a concrete scene). Point attributes are
     passed on to the discs (``well_id``, stain values...), plus ``center`` (the well centre) for the shader.
     """
     group, group_in, group_out = new_group(
@@ -128,8 +128,10 @@ def wells_group(material: bpy.types.Material) -> bpy.types.NodeTree:
     points = _store(group, output(group_in, "Geometry"), "center", output(add(group, "GeometryNodeInputPosition"), "Position"), "FLOAT_VECTOR")
     chance = add(group, "FunctionNodeRandomValue", data_type="BOOLEAN")
     feed(group, chance, Probability=output(group_in, "Empty Probability"), ID=_named(group, "well_id", "INT"), Seed=output(group_in, "Seed"))
-    emptied = math(group, "MAXIMUM", _named(group, "well_emptied"), output(chance, 0))
-    points = _store(group, points, "well_emptied", emptied)
+    state = _xyz(group, _named(group, "well_state", "FLOAT_VECTOR"))  # (emptied, lysed, texture seed)
+    emptied = math(group, "MAXIMUM", output(state, "X"), output(chance, 0))
+    state = feed(group, add(group, "ShaderNodeCombineXYZ"), X=emptied, Y=output(state, "Y"), Z=output(state, "Z"))
+    points = _store(group, points, "well_state", state, "FLOAT_VECTOR")
     disc = add(group, "GeometryNodeMeshCircle", fill_type="NGON")
     feed(group, disc, Vertices=output(group_in, "Segments"), Radius=output(group_in, "Well Radius"))
     instances = feed(group, add(group, "GeometryNodeInstanceOnPoints"), Points=points, Instance=disc)

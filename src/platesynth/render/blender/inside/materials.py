@@ -18,18 +18,17 @@ import bpy
 
 from platesynth.render.blender.inside.nodes import add, feed, link, math, output, vector_math
 
-WELL_ATTRIBUTES = (
-    "well_density",
-    "well_centre_gradient",
-    "well_centre_angle_deg",
-    "well_drying_detail",
-    "well_emptied",
-    "well_lysed",
-    "well_texture_seed",
-)
-"""Float point attributes describing a well's monolayer (copied onto its plaques); plus the vectors
-``well_centre_offset`` (the dark centre's offset, plate mm) and ``well_center`` (world mm). Prefixed names:
-Cycles reserves some plain ones (``density`` is the volume density)."""
+WELL_VECTORS = {
+    "well_stain": ("well_density", "well_centre_gradient", "well_drying_detail"),
+    "well_state": ("well_emptied", "well_lysed", "well_texture_seed"),
+    "well_centre": ("well_centre_offset_x", "well_centre_offset_y", "well_centre_angle_deg"),
+}
+"""A well's monolayer, packed three values to a vector point attribute (each attribute the shader reads costs
+time at every sample): the vectors' names and their components' names (the stain group's inputs). Wells and
+their plaques and marks carry them, plus ``well_center`` (world mm). Prefixed names: Cycles reserves some plain
+ones (``density`` is the volume density)."""
+
+WELL_ATTRIBUTES = tuple(name for components in WELL_VECTORS.values() for name in components)
 
 PLATE_STAIN_INPUTS = ("Unevenness", "Unevenness Scale", "Centre Elongation", "Rim Clearing", "Translucency")
 """Plate-wide stain parameters: inputs of the stain group, fed by named Value nodes in each material."""
@@ -51,6 +50,15 @@ def _new_material(name: str) -> tuple[bpy.types.Material, bpy.types.NodeTree, bp
 def _attribute(tree: bpy.types.NodeTree, name: str, socket: str = "Fac") -> bpy.types.NodeSocket:
     node = add(tree, "ShaderNodeAttribute", attribute_type="GEOMETRY", attribute_name=name)
     return node.outputs[socket]
+
+
+def _well_value(tree: bpy.types.NodeTree, name: str) -> bpy.types.NodeSocket:
+    """One of the well's values (see :data:`WELL_VECTORS`) from its packed attribute."""
+    for vector, components in WELL_VECTORS.items():
+        if name in components:
+            parts = feed(tree, add(tree, "ShaderNodeSeparateXYZ"), Vector=_attribute(tree, vector, "Vector"))
+            return output(parts, "XYZ"[components.index(name)])
+    raise KeyError(name)
 
 
 def _value(tree: bpy.types.NodeTree, name: str, value: float) -> bpy.types.NodeSocket:
@@ -124,7 +132,6 @@ def stain_group(transmittance: bpy.types.NodeTree, with_lysis: bool = True) -> b
     group = bpy.data.node_groups.new("platesynth.stain", "ShaderNodeTree")
     sockets = [("Offset", "NodeSocketVector"), ("Well Radius", "NodeSocketFloat"), ("Stain Colour", "NodeSocketColor")]
     sockets += [(name, "NodeSocketFloat") for name in PLATE_STAIN_INPUTS + WELL_ATTRIBUTES]
-    sockets += [("Centre Offset", "NodeSocketVector")]
     for name, kind in sockets:
         group.interface.new_socket(name=name, in_out="INPUT", socket_type=kind)
     group.interface.new_socket(name="Density", in_out="OUTPUT", socket_type="NodeSocketFloat")
@@ -136,7 +143,8 @@ def stain_group(transmittance: bpy.types.NodeTree, with_lysis: bool = True) -> b
     low = _unit_noise(group, offset, inp["Unevenness Scale"], seed)
     density = math(group, "MULTIPLY", inp["well_density"], math(group, "MULTIPLY_ADD", low, inp["Unevenness"], 1.0))
     # the elongated darker centre: a Gaussian in the rotated, stretched frame around the offset centre
-    centred = feed(group, add(group, "ShaderNodeSeparateXYZ"), Vector=vector_math(group, "SUBTRACT", offset, inp["Centre Offset"]))
+    centre_offset = feed(group, add(group, "ShaderNodeCombineXYZ"), X=inp["well_centre_offset_x"], Y=inp["well_centre_offset_y"])
+    centred = feed(group, add(group, "ShaderNodeSeparateXYZ"), Vector=vector_math(group, "SUBTRACT", offset, centre_offset))
     angle = math(group, "RADIANS", inp["well_centre_angle_deg"])
     cos_a, sin_a = math(group, "COSINE", angle), math(group, "SINE", angle)
     cu, cv = output(centred, "X"), output(centred, "Y")
@@ -208,8 +216,9 @@ def _stain_node(tree: bpy.types.NodeTree, group: bpy.types.NodeTree, shared: Map
     node = add(tree, "ShaderNodeGroup")
     node.node_tree = group
     inputs: dict[str, Any] = {key: value for key, value in shared.items() if key in node.inputs} | {"Offset": offset}
-    inputs |= {name: _attribute(tree, name) for name in WELL_ATTRIBUTES}
-    inputs["Centre Offset"] = _attribute(tree, "well_centre_offset", "Vector")
+    for vector, components in WELL_VECTORS.items():
+        parts = feed(tree, add(tree, "ShaderNodeSeparateXYZ"), Vector=_attribute(tree, vector, "Vector"))
+        inputs |= {name: output(parts, axis) for name, axis in zip(components, "XYZ")}
     for key, value in inputs.items():
         target = node.inputs[key]
         if isinstance(value, (bpy.types.Node, bpy.types.NodeSocket)):
@@ -225,7 +234,7 @@ def _change_ratio(tree: bpy.types.NodeTree, transmittance: bpy.types.NodeTree, s
     density. (The nominal density, not the local one, keeps films cheap: the monolayer's texture stays under
     them at full contrast.)"""
     shared = stain.sockets(tree)
-    nominal = _attribute(tree, "well_density")
+    nominal = _well_value(tree, "well_density")
     changed = math(tree, "MULTIPLY_ADD", nominal, math(tree, "SUBTRACT", 1.0, clearing), extra)
     ratio = add(tree, "ShaderNodeMix", data_type="RGBA", blend_type="DIVIDE", clamp_result=False)
     feed(
@@ -264,7 +273,7 @@ def plaque_material(transmittance: bpy.types.NodeTree, stain: StainInputs) -> bp
     """
     material, tree, out = _new_material("platesynth.plaque")
     edge = _smoothstep(tree, math(tree, "MULTIPLY_ADD", _attribute(tree, "signed_w"), -0.5, 0.5), 0.0, 1.0)
-    residual_noise = _cell_noise(tree, _plate_offset(tree), 0.12, math(tree, "ADD", _attribute(tree, "well_texture_seed"), 71.0))
+    residual_noise = _cell_noise(tree, _plate_offset(tree), 0.12, math(tree, "ADD", _well_value(tree, "well_texture_seed"), 71.0))
     residual = math(tree, "MINIMUM", math(tree, "MAXIMUM", math(tree, "MULTIPLY_ADD", residual_noise, 0.25, 0.12), 0.0), 0.6)
     clearing = math(tree, "MULTIPLY", math(tree, "MULTIPLY", _attribute(tree, "clearness"), edge), math(tree, "SUBTRACT", 1.0, residual))
     path = add(tree, "ShaderNodeLightPath")
@@ -284,13 +293,13 @@ def marks_material(transmittance: bpy.types.NodeTree, stain: StainInputs) -> bpy
 
 
 def plastic_material(name: str, tint_rgb: tuple[float, float, float], transmittance: float, rim_darkness: float) -> bpy.types.Material:
-    """Polystyrene: tinted see-through plastic whose grazing faces (the walls seen edge-on) look dark."""
+    """Polystyrene: tinted see-through plastic whose grazing faces (the walls seen edge-on) pass less light."""
     material, tree, out = _new_material(name)
-    clear = feed(tree, add(tree, "ShaderNodeBsdfTransparent"), Color=_plastic_colour(tree, tint_rgb, transmittance))
-    dark = feed(tree, add(tree, "ShaderNodeBsdfDiffuse"), Color=(0.02, 0.02, 0.025, 1.0))
     facing = feed(tree, add(tree, "ShaderNodeLayerWeight"), Blend=0.5)
     outline = math(tree, "MULTIPLY", math(tree, "POWER", output(facing, "Facing"), 4.0), _value(tree, "Rim Darkness", rim_darkness))
-    link(tree, feed(tree, add(tree, "ShaderNodeMixShader"), Fac=outline, Shader=clear, Shader_1=dark), out)
+    colour = add(tree, "ShaderNodeVectorMath", operation="SCALE")
+    feed(tree, colour, Vector=_plastic_colour(tree, tint_rgb, transmittance), Scale=math(tree, "SUBTRACT", 1.0, outline))
+    link(tree, feed(tree, add(tree, "ShaderNodeBsdfTransparent"), Color=output(colour, "Vector")), out)
     return material
 
 

@@ -120,15 +120,13 @@ def _well_attributes(wells: Sequence[Mapping[str, Any]], seed: int) -> dict[str,
     attributes: dict[str, np.ndarray] = {
         "well_id": np.array([w["id"] for w in wells], dtype=np.int32),
         "well_center": centres,
-        "well_emptied": np.array([float(w["emptied"]) for w in wells]),
-        "well_lysed": np.array([float(w["lysed"]) for w in wells]),
+        "well_stain": np.array([[s["density"], s["centre_gradient"], s["drying_detail"]] for s in stains], dtype=np.float64).reshape(-1, 3),
         # a different texture pattern per well and scene
-        "well_texture_seed": (seed % 9973) * 0.1 + 13.0 * np.arange(len(wells), dtype=np.float64),
-        "well_centre_offset": np.array([[*s["centre_offset_mm"], 0.0] for s in stains], dtype=np.float64).reshape(-1, 3),
+        "well_state": np.array(
+            [[float(w["emptied"]), float(w["lysed"]), (seed % 9973) * 0.1 + 13.0 * i] for i, w in enumerate(wells)], dtype=np.float64
+        ).reshape(-1, 3),
+        "well_centre": np.array([[*s["centre_offset_mm"], s["centre_angle_deg"]] for s in stains], dtype=np.float64).reshape(-1, 3),
     }
-    for name in materials.WELL_ATTRIBUTES:
-        if name not in attributes:
-            attributes[name] = np.array([float(s[name.removeprefix("well_")]) for s in stains])
     return attributes
 
 

@@ -1,0 +1,231 @@
+"""The Blender backend: real tiny renders in a worker, masks against the raster renderer's, the worker pool's
+crash / timeout / recycling behaviour (with a stand-in worker), .blend export and the ``scene export`` command."""
+
+from __future__ import annotations
+
+import json
+import sys
+import textwrap
+from pathlib import Path
+
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+from platesynth.errors import ParameterError
+from platesynth.render.blender import (
+    BlenderScriptError,
+    BlenderWorkerError,
+    BlenderWorkerPool,
+    bpy_available,
+    export_blend,
+    render_blender,
+    renumber,
+)
+from platesynth.render.blender.describe import camera_pose
+from platesynth.render.raster import camera_view, render_raster
+from platesynth.scene import load_config, sample_scene
+
+SIZE = (160, 120)
+SAMPLES = 2
+PLAQUE_IOU = 0.9
+"""Stated agreement: the union of plaque pixels in Blender's and the raster renderer's masks overlaps at least this
+much (intersection over union) at 160x120; at 1024x768 it is about 0.99 (benchmarks/bench_blender.py)."""
+
+needs_bpy = pytest.mark.skipif(not bpy_available(), reason="bpy (Blender 5.0.1 as a Python module) is not installed here: pip install 'platesynth[blender]'")
+
+
+def scene_with_plaques(seed: int = 5, **overrides):
+    settings = {"plaques.negative_plate": 0.0, "plaques.top_count": 120, "plaques.lysis_count": 1000}
+    return sample_scene(load_config("high", overrides=settings | overrides), seed)
+
+
+@pytest.fixture(scope="module")
+def pool(tmp_path_factory):
+    with BlenderWorkerPool(home=tmp_path_factory.mktemp("blender-home"), timeout=240) as shared_pool:
+        yield shared_pool
+
+
+@pytest.fixture(scope="module")
+def rendered(pool):
+    scene = scene_with_plaques()
+    return scene, render_blender(scene, SIZE, samples=SAMPLES, pool=pool), render_raster(scene, SIZE)
+
+
+# ---------------------------------------------------------------------------------------------- without bpy
+
+
+def test_renumber_keeps_order_and_closes_gaps():
+    mask = np.array([[0, 7, 7], [3, 0, 12]], dtype=np.uint16)
+    assert renumber(mask).tolist() == [[0, 2, 2], [1, 0, 3]]
+    assert renumber(np.zeros((2, 2), np.uint16)).tolist() == [[0, 0], [0, 0]]
+
+
+@pytest.mark.parametrize("below", [0.0, 1.0])
+def test_camera_pose_reproduces_the_raster_homography(below):
+    scene = sample_scene(load_config("high", overrides={"camera.from_below": below, "camera.tilt_deg": 6.0, "camera.rotation_deg": 4.0}), 3)
+    view = camera_view(scene, 320, 240)
+    matrix_world, focal, principal = camera_pose(scene, view)
+    points = np.array([[5.0, 7.0], [120.0, 80.0], [64.0, 40.0]])
+    world = np.column_stack([points[:, 0], -points[:, 1], np.zeros(3), np.ones(3)])
+    camera = (np.linalg.inv(matrix_world) @ world.T).T  # Blender camera: looks along -z, y up
+    pixels = np.column_stack([principal[0] + focal * camera[:, 0] / -camera[:, 2], principal[1] - focal * camera[:, 1] / -camera[:, 2]])
+    np.testing.assert_allclose(pixels, view.project(points), atol=1e-6)
+    # seen from below the camera is under the plate (negative z), from above over it
+    assert np.sign(matrix_world[2, 3]) == (-1 if below else 1)
+
+
+def _fake_worker(tmp_path: Path) -> list[str]:
+    """A stand-in worker speaking the real protocol: it crashes, hangs or answers on request."""
+    script = tmp_path / "fake_worker.py"
+    script.write_text(
+        textwrap.dedent(
+            """
+            import json, os, sys, time
+            marker = sys.argv[1]
+            print(json.dumps({"event": "ready", "pid": os.getpid()}), flush=True)
+            for line in sys.stdin:
+                request = json.loads(line)
+                op = request["op"]
+                if op == "quit":
+                    break
+                if op == "crash" or (op == "crash_once" and not os.path.exists(marker)):
+                    open(marker, "w").close()
+                    sys.stderr.write("fake worker dying on purpose\\n"); sys.stderr.flush()
+                    os.abort()
+                if op == "hang":
+                    time.sleep(60)
+                print(json.dumps({"ok": True, "pid": os.getpid(), "home": os.environ["HOME"]}), flush=True)
+            """
+        )
+    )
+    return [sys.executable, str(script), str(tmp_path / "crashed-once")]
+
+
+def test_a_crash_is_retried_once_on_a_fresh_worker(tmp_path):
+    with BlenderWorkerPool(command=_fake_worker(tmp_path), home=tmp_path / "home") as fake:
+        reply = fake.request({"op": "crash_once"})
+        assert reply["ok"] and fake.workers_started == 2
+        assert reply["home"] == str(tmp_path / "home")  # Blender's home-directory files go where the tool says
+
+
+def test_repeated_crashes_fail_with_blenders_log(tmp_path):
+    with BlenderWorkerPool(command=_fake_worker(tmp_path), home=tmp_path / "home") as fake:
+        with pytest.raises(BlenderWorkerError, match="failed 2 times.*SIGABRT") as failure:
+            fake.request({"op": "crash"})
+        assert len(failure.value.attempts) == 2
+        assert "fake worker dying on purpose" in failure.value.log
+        assert fake.request({"op": "ping"})["ok"]  # the pool goes on with a new worker
+
+
+def test_a_hanging_render_times_out_and_is_retried(tmp_path):
+    with BlenderWorkerPool(command=_fake_worker(tmp_path), home=tmp_path / "home", timeout=0.5) as fake:
+        with pytest.raises(BlenderWorkerError, match="timed out") as failure:
+            fake.request({"op": "hang"})
+        assert len(failure.value.attempts) == 2 and fake.workers_started == 2
+
+
+def test_workers_are_replaced_every_n_requests(tmp_path):
+    with BlenderWorkerPool(command=_fake_worker(tmp_path), home=tmp_path / "home", max_renders_per_worker=2) as fake:
+        pids = [fake.request({"op": "ping"})["pid"] for _ in range(5)]
+    assert pids[0] == pids[1] != pids[2] == pids[3] != pids[4]
+
+
+def test_bad_arguments_are_refused_before_blender_starts():
+    scene = scene_with_plaques()
+    with pytest.raises(ParameterError, match="engine"):
+        render_blender(scene, SIZE, engine="BLENDER_EEVEE_NEXT")
+    with pytest.raises(ParameterError, match="size"):
+        render_blender(scene, (8, 8))
+    with pytest.raises(ParameterError, match=r"\.blend"):
+        export_blend(scene, "plate.png")
+
+
+# ---------------------------------------------------------------------------------------------- with bpy
+
+
+@needs_bpy
+def test_masks_are_exact_integers_and_agree_with_the_raster_renderer(rendered):
+    scene, blender, raster = rendered
+    width, height = SIZE
+    assert blender.image.shape == (height, width, 3) and blender.image.dtype == np.uint8
+    assert blender.wells.dtype == np.uint8 and blender.plaques.dtype == np.uint16
+    assert blender.wells.shape == blender.plaques.shape == (height, width)
+    # the same wells, at the same places
+    assert set(np.unique(blender.wells)) == set(np.unique(raster.wells)) == {0} | {w.id for w in scene.wells}
+    assert (blender.wells == raster.wells).mean() > 0.99
+    # visible plaques numbered 1..m without gaps, each inside one well
+    ids = np.unique(blender.plaques)
+    assert ids[0] == 0 and ids[1:].tolist() == list(range(1, len(ids)))
+    assert len(ids) > 20
+    both, either = (blender.plaques > 0) & (raster.plaques > 0), (blender.plaques > 0) | (raster.plaques > 0)
+    assert both.sum() / either.sum() >= PLAQUE_IOU
+    assert not ((blender.plaques > 0) & (blender.wells == 0)).any()
+    # counts from the masks: per well close to the raster renderer's
+    counts, raster_counts = blender.plaque_counts(), raster.plaque_counts()
+    assert counts.keys() == raster_counts.keys()
+    assert sum(counts.values()) == len(ids) - 1
+    for well, count in raster_counts.items():
+        assert abs(counts[well] - count) <= max(2, 0.1 * count), (well, counts[well], count)
+
+
+@needs_bpy
+def test_no_well_id_spills_outside_its_well(rendered):
+    scene, blender, _ = rendered
+    view = camera_view(scene, *SIZE)
+    xs, ys = np.meshgrid(np.arange(SIZE[0]) + 0.5, np.arange(SIZE[1]) + 0.5)
+    plate = np.einsum("ij,jhw->ihw", view.px_to_plate, np.stack([xs, ys, np.ones_like(xs)]))
+    u, v = plate[0] / plate[2], plate[1] / plate[2]  # plate mm of every pixel centre
+    pixel_mm = 1.0 / view.px_per_mm
+    for well in scene.wells:
+        inside = blender.wells == well.id
+        distance = np.hypot(u[inside] - well.center_mm[0], v[inside] - well.center_mm[1])
+        assert distance.max() <= scene.plate.well_radius_mm + pixel_mm, well.label
+
+
+@needs_bpy
+def test_every_plaque_in_the_mask_is_visible_in_the_image(rendered):
+    _, blender, _ = rendered
+    brightness = blender.image.astype(np.float64).mean(axis=2)
+    for plaque in range(1, int(blender.plaques.max()) + 1):
+        inside = blender.plaques == plaque
+        if inside.sum() < 3:  # a pixel or two: too few to tell from the texture
+            continue
+        well = np.bincount(blender.wells[inside]).argmax()
+        stained = (blender.wells == well) & (blender.plaques == 0)
+        assert brightness[inside].mean() > brightness[stained].mean(), plaque
+
+
+@needs_bpy
+def test_an_error_inside_blender_is_an_error_for_the_user(pool):
+    with pytest.raises(BlenderScriptError, match="KeyError"):
+        pool.request({"op": "render", "scene": {"scene": {}, "view": {}}, "options": {}, "out_dir": str(pool.scratch / "x")})
+    with pytest.raises(BlenderScriptError, match="engine must be one of"):
+        from platesynth.render.blender.describe import describe_scene
+
+        request = {"scene": describe_scene(scene_with_plaques(), SIZE), "options": {"engine": "BLENDER_EEVEE_NEXT"}}
+        pool.request({"op": "render", "out_dir": str(pool.scratch / "y"), **request})
+    reply = pool.request({"op": "ping"})  # the same worker carries on
+    assert reply["ok"] and reply["blender"].startswith("5.0")
+
+
+@needs_bpy
+def test_export_writes_a_blend_file_and_the_cli_command(pool, tmp_path):
+    from platesynth.cli import app
+    from platesynth.cli import blender as blender_cli
+
+    scene = scene_with_plaques()
+    target = export_blend(scene, tmp_path / "plate.blend", SIZE, pool=pool)
+    assert target.stat().st_size > 10_000
+    assert [p.name for p in tmp_path.iterdir()] == ["plate.blend"]  # no temporary file left behind
+
+    blender_cli.register(app)
+    saved = tmp_path / "scene.json"
+    saved.write_text(json.dumps(scene.model_dump(mode="json")))
+    runner = CliRunner()
+    # a new pool in this process for the command: it builds the same scene from the saved JSON
+    result = runner.invoke(app, ["scene", "export", "--scene", str(saved), "--out", str(tmp_path / "again.blend"), "--size", "160x120"])
+    assert result.exit_code == 0, result.output
+    assert (tmp_path / "again.blend").stat().st_size > 10_000
+    refused = runner.invoke(app, ["scene", "export", "--out", str(tmp_path / "plate.png")])
+    assert refused.exit_code == 1 and "must end in .blend" in refused.output
