@@ -89,6 +89,8 @@ def realism(args: argparse.Namespace) -> None:
     from platesynth.scene import load_config, sample_scene
 
     real = SHARED / "data" / "plaque12" / "plates"
+    if not os.environ.get("PLATESYNTH_WEIGHTS_DIR") and (SHARED / "weights").is_dir():
+        os.environ["PLATESYNTH_WEIGHTS_DIR"] = str(SHARED / "weights")
     if not real.is_dir():
         print(f"realism skipped: {real} not found (set PLATESYNTH_SHARED)")
         return

@@ -2,14 +2,16 @@
 # The first platesynth segmentation model: synthetic 12-well plates only, trained on a CPU in about 25 minutes (2 busy cores).
 #
 #   scripts/train_first_model.sh                 # renders 550 images into $DATA, trains into $MODEL
-#   DATA=/scratch/plates MODEL=models/mine THREADS=4 scripts/train_first_model.sh
+#   DATA=/scratch/plates MODEL=/scratch/model THREADS=4 scripts/train_first_model.sh
+#
+# The shipped models/plaque12-synthetic holds weights.pt, config.json and history.json of such a run.
 #
 # Then, zero-shot on the real plates (a person's counts; blank wells are not scored):
 #   platesynth evaluate counts --model "$MODEL" --images ../shared/data/plaque12/plates \
 #       --counts ../shared/data/plaque12/counts.csv --json
 set -euo pipefail
-DATA=${DATA:-first-model-data}
-MODEL=${MODEL:-models/plaque12-synthetic}
+DATA=${DATA:-runs/first-model-data}
+MODEL=${MODEL:-runs/plaque12-synthetic}
 # One torch thread: on a busy 2-core machine more threads spin-wait each other and run many times slower.
 THREADS=${THREADS:-1}
 

@@ -131,6 +131,18 @@ def test_workers_are_replaced_every_n_requests(tmp_path):
     assert pids[0] == pids[1] != pids[2] == pids[3] != pids[4]
 
 
+def test_pool_settings_from_the_environment_are_checked(monkeypatch):
+    from platesynth.render.blender.pool import setting_from_env
+
+    monkeypatch.setenv("PLATESYNTH_BLENDER_MAX_RENDERS", "20")
+    assert setting_from_env("PLATESYNTH_BLENDER_MAX_RENDERS", 50) == 20
+    monkeypatch.setenv("PLATESYNTH_BLENDER_MAX_RENDERS", "2.5")
+    with pytest.raises(ParameterError, match="PLATESYNTH_BLENDER_MAX_RENDERS must be a positive integer"):
+        setting_from_env("PLATESYNTH_BLENDER_MAX_RENDERS", 50)
+    monkeypatch.delenv("PLATESYNTH_BLENDER_TIMEOUT", raising=False)
+    assert setting_from_env("PLATESYNTH_BLENDER_TIMEOUT", 300.0) == 300.0
+
+
 def test_bad_arguments_are_refused_before_blender_starts():
     scene = scene_with_plaques()
     with pytest.raises(ParameterError, match="engine"):

@@ -32,6 +32,7 @@ from platesynth.render.blender.pool import (
     blender_home,
     close_default_pool,
     default_pool,
+    setting_from_env,
 )
 from platesynth.render.result import RenderResult, WellInfo
 from platesynth.scene.params import Scene
@@ -126,7 +127,7 @@ def render_blender(
         (:class:`BlenderWorkerError`, with Blender's log in ``log``).
     """
     if samples is None:
-        samples = int(os.environ.get("PLATESYNTH_BLENDER_SAMPLES", DEFAULT_SAMPLES))
+        samples = int(setting_from_env("PLATESYNTH_BLENDER_SAMPLES", DEFAULT_SAMPLES))
     width, height = _check(size, samples, engine, device)
     pool = pool or default_pool()
     out_dir = pool.new_output_dir()

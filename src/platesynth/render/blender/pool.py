@@ -23,7 +23,7 @@ import time
 from pathlib import Path
 from typing import Any
 
-from platesynth.errors import RenderError
+from platesynth.errors import ParameterError, RenderError
 
 LOG_TAIL_CHARS = 6000
 
@@ -364,7 +364,8 @@ class BlenderWorkerPool:
             worker.renders += 1
             if worker.renders >= self.max_renders_per_worker:
                 self._retire(worker, kill=False)
-                worker = None
+                # start the replacement now: it imports Blender while the caller works on this result
+                worker = None if self._closed else self._start_worker()
             self._slots.put(worker)
             if not reply.get("ok"):
                 error = reply.get("error", "unknown error")
@@ -399,12 +400,33 @@ def default_pool() -> BlenderWorkerPool:
     with _default_pool_lock:
         if _default_pool is None or _default_pool._closed:
             _default_pool = BlenderWorkerPool(
-                workers=int(os.environ.get("PLATESYNTH_BLENDER_WORKERS", "1")),
-                max_renders_per_worker=int(os.environ.get("PLATESYNTH_BLENDER_MAX_RENDERS", "50")),
-                timeout=float(os.environ.get("PLATESYNTH_BLENDER_TIMEOUT", "300")),
+                workers=int(setting_from_env("PLATESYNTH_BLENDER_WORKERS", 1)),
+                max_renders_per_worker=int(setting_from_env("PLATESYNTH_BLENDER_MAX_RENDERS", 50)),
+                timeout=setting_from_env("PLATESYNTH_BLENDER_TIMEOUT", 300.0),
             )
             atexit.register(_default_pool.close)
         return _default_pool
+
+
+def setting_from_env(name: str, default: float) -> float:
+    """A positive number from the environment variable ``name`` (``default`` where unset); integer where the
+    default is.
+
+    Raises
+    ------
+    ParameterError
+        If the variable is set to something else.
+    """
+    text = os.environ.get(name)
+    if text is None:
+        return default
+    try:
+        value = float(text)
+    except ValueError:
+        value = -1.0
+    if value <= 0 or (isinstance(default, int) and not value.is_integer()):
+        raise ParameterError(f"${name} must be a positive {'integer' if isinstance(default, int) else 'number'}, got {text!r}")
+    return value
 
 
 def close_default_pool() -> None:

@@ -19,8 +19,9 @@ import numpy as np
 from platesynth.render.blender.inside.nodes import add, feed, link, math, output, vector_math
 
 
-LAYER_STEP_MM = 0.002
-"""Height between stacked plaques (later plaques lie nearer the camera)."""
+LAYER_STEP_MM = 1e-4
+"""Distance between stacked plaques (later plaques lie nearer the camera): small enough to add no visible
+parallax, large enough for Cycles to tell the surfaces apart."""
 
 _ATTRIBUTE_TYPES = {"INT": ("INT", "value"), "FLOAT": ("FLOAT", "value"), "FLOAT_VECTOR": ("FLOAT_VECTOR", "vector")}
 

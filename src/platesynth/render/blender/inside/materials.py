@@ -4,9 +4,11 @@ The monolayer is a thin absorbing film: a Transparent BSDF whose colour is its t
 ``T = translucency + (1 - translucency) * stain_rgb ** D`` (Beer-Lambert with the stain's nominal colour as the
 transmittance at relative density ``D = 1``). ``D`` is built in the shared group ``platesynth.stain`` from the
 well's attributes: low-frequency unevenness, an elongated dark centre, high-frequency drying detail and a paler
-band along the rim. A plaque is a disc just above the monolayer whose Transparent colour is the ratio of the
-cleared transmittance to the intact one, so light passing plaque and monolayer sees exactly the stain that is
-left. Per-element values come from point attributes; plate-wide values are named Value/RGB nodes.
+band along the rim (``platesynth.transmittance`` turns a density into a colour). A plaque, scratch or speck is a
+film just in front of the monolayer whose Transparent colour is the ratio of the changed transmittance to the
+intact one, so light passing film and monolayer sees the stain that is left. The plastic multiplies by its tint
+and transmittance. Per-element values come from point attributes; plate-wide values are named Value/RGB nodes.
+The mask pass overrides every material with :func:`mask_material`.
 """
 
 from __future__ import annotations

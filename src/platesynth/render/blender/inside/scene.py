@@ -23,8 +23,6 @@ from mathutils import Matrix
 from platesynth.render.blender.inside import geometry, materials, plate
 
 PASS_PROPERTY = "platesynth_pass"
-PLAQUE_LAYER_STEP_MM = 1e-4
-"""Distance between stacked plaque discs: small enough to add no visible parallax."""
 RULER_WIDTH_MM = 22.0
 
 
@@ -92,7 +90,7 @@ def build(description: Mapping[str, Any]) -> dict[str, bpy.types.Object]:
     plaque_attributes = _plaque_attributes(plaques, wells, well_attributes, harmonics)
     plaque_xyz = _with_z(_world_xy([p["center_mm"] for p in plaques]), 0.0)
     plaque_group = geometry.plaques_group(materials.plaque_material(transmittance, stain), harmonics)
-    step = toward_camera * PLAQUE_LAYER_STEP_MM
+    step = toward_camera * geometry.LAYER_STEP_MM
     # outlines (the masks) on top, in drawing order; their fuzzy fringes under all of them
     cores = geometry.point_cloud("platesynth.plaques", plaque_xyz, plaque_attributes)
     geometry.add_modifier(cores, plaque_group, {"Well Radius": well_radius, "Layer Step": step, "Layer Offset": float(len(plaques))})
