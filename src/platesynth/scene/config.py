@@ -315,7 +315,7 @@ class StainConfig(Section):
     unevenness_scale_mm: Dist = number([2.0, 6.0], 0.5, 30.0, "mm", "size of low-frequency blotches")
     centre_gradient: Dist = number([0.0, 0.15], 0.0, 1.0, "", "extra density of the elongated dark centre")
     centre_elongation: Dist = number([1.0, 2.0], 1.0, 5.0, "", "aspect ratio of the dark centre")
-    drying_detail: Dist = number([0.02, 0.06], 0.0, 1.0, "", "high-frequency drying texture")
+    drying_detail: Dist = number([0.01, 0.04], 0.0, 1.0, "", "high-frequency drying texture")
     rim_clearing_mm: Dist = number([0.1, 0.6], 0.0, 5.0, "mm", "width of the paler band along the rim")
     translucency: Dist = number([0.0, 0.008], 0.0, 1.0, "", "fraction of light passing un-absorbed")
 
@@ -386,7 +386,7 @@ class PostConfig(Section):
     sharpen: float = probability(1.0, "chance of sharpening")
     sharpen_strength: Dist = number([1.0, 2.0], 0.0, 2.0, "", "unsharp-mask amount")
     noise: float = probability(1.0, "chance of sensor noise")
-    noise_strength: Dist = number([2.0, 4.0], 0.0, 30.0, "levels", "noise sd in 8-bit levels")
+    noise_strength: Dist = number([1.0, 2.5], 0.0, 30.0, "levels", "noise sd in 8-bit levels")
     jpeg: float = probability(0.9, "chance of JPEG compression")
     jpeg_strength: Dist = number([0.05, 0.2], 0.0, 0.9, "", "1 - JPEG quality/100")
 

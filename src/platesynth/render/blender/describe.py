@@ -104,5 +104,6 @@ def describe_scene(scene: Scene, size: tuple[int, int]) -> dict[str, Any]:
                 srgb_to_linear(1.0 - b.opacity * (1.0 - np.asarray(b.color_rgb))).tolist() for b in scene.artifacts.blots
             ],
             "px_scale": width / REFERENCE_WIDTH,
+            "pixel_mm": 1.0 / view.px_per_mm,
         },
     }

@@ -123,12 +123,13 @@ def transmittance_group() -> bpy.types.NodeTree:
     return group
 
 
-def stain_group(transmittance: bpy.types.NodeTree, with_lysis: bool = True) -> bpy.types.NodeTree:
+def stain_group(transmittance: bpy.types.NodeTree, pixel_mm: float, with_lysis: bool = True) -> bpy.types.NodeTree:
     """Shader group ``platesynth.stain``: the monolayer's density and transmittance at a point of a well.
 
     The density follows the raster renderer's model: the well's density with low-frequency unevenness, an
     elongated darker centre, a thinner band along the rim and high-frequency drying texture; lysed wells keep
-    fibrous remnants, emptied wells nothing. ``with_lysis=False`` leaves out the lysed wells' remnant texture
+    fibrous remnants, emptied wells nothing. The drying texture's cells are 0.06 mm but at least a pixel
+    (``pixel_mm``), as in the raster renderer. ``with_lysis=False`` leaves out the lysed wells' remnant texture
     (a scene without lysed wells need not pay for it).
     """
     group = bpy.data.node_groups.new("platesynth.stain", "ShaderNodeTree")
@@ -163,7 +164,7 @@ def stain_group(transmittance: bpy.types.NodeTree, with_lysis: bool = True) -> b
     band = math(group, "EXPONENT", math(group, "DIVIDE", to_rim, math(group, "MULTIPLY", math(group, "MAXIMUM", inp["Rim Clearing"], 1e-4), -1.0)))
     density = math(group, "MULTIPLY", density, math(group, "MULTIPLY_ADD", band, -0.5, 1.0))
     # high-frequency drying texture
-    high = _cell_noise(group, offset, 0.06, math(group, "ADD", seed, 17.0))
+    high = _cell_noise(group, offset, max(0.06, pixel_mm), math(group, "ADD", seed, 17.0))
     density = math(group, "MULTIPLY", density, math(group, "MAXIMUM", math(group, "MULTIPLY_ADD", math(group, "MULTIPLY", high, 2.0), inp["well_drying_detail"], 1.0), 0.0))
     if with_lysis:  # lysed wells keep fibrous remnants of the layer
         fibres = _unit_noise(group, offset, 0.5, math(group, "ADD", seed, 41.0))
@@ -187,9 +188,10 @@ def _transmittance(tree: bpy.types.NodeTree, group: bpy.types.NodeTree, density:
 class StainInputs:
     """The plate-wide stain values every stain-using material exposes as named nodes."""
 
-    def __init__(self, stain_linear_rgb: tuple[float, float, float], well_radius: float, plate_stain: Mapping[str, float]) -> None:
+    def __init__(self, stain_linear_rgb: tuple[float, float, float], well_radius: float, plate_stain: Mapping[str, float], pixel_mm: float) -> None:
         self.stain_linear_rgb = stain_linear_rgb
         self.well_radius = well_radius
+        self.pixel_mm = pixel_mm  # the size of a pixel on the plate: the finest textures are no smaller
         self.values = {
             "Unevenness": float(plate_stain["unevenness"]),
             "Unevenness Scale": float(plate_stain["unevenness_scale_mm"]),
@@ -275,7 +277,7 @@ def plaque_material(transmittance: bpy.types.NodeTree, stain: StainInputs) -> bp
     """
     material, tree, out = _new_material("platesynth.plaque")
     edge = _smoothstep(tree, math(tree, "MULTIPLY_ADD", _attribute(tree, "signed_w"), -0.5, 0.5), 0.0, 1.0)
-    residual_noise = _cell_noise(tree, _plate_offset(tree), 0.12, math(tree, "ADD", _well_value(tree, "well_texture_seed"), 71.0))
+    residual_noise = _cell_noise(tree, _plate_offset(tree), max(0.12, stain.pixel_mm), math(tree, "ADD", _well_value(tree, "well_texture_seed"), 71.0))
     residual = math(tree, "MINIMUM", math(tree, "MAXIMUM", math(tree, "MULTIPLY_ADD", residual_noise, 0.25, 0.12), 0.0), 0.6)
     clearing = math(tree, "MULTIPLY", math(tree, "MULTIPLY", _attribute(tree, "clearness"), edge), math(tree, "SUBTRACT", 1.0, residual))
     path = add(tree, "ShaderNodeLightPath")
@@ -298,7 +300,8 @@ def plastic_material(name: str, tint_rgb: tuple[float, float, float], transmitta
     """Polystyrene: tinted see-through plastic whose grazing faces (the walls seen edge-on) pass less light."""
     material, tree, out = _new_material(name)
     facing = feed(tree, add(tree, "ShaderNodeLayerWeight"), Blend=0.5)
-    outline = math(tree, "MULTIPLY", math(tree, "POWER", output(facing, "Facing"), 4.0), _value(tree, "Rim Darkness", rim_darkness))
+    # only faces seen nearly edge-on darken (the walls' outlines), not the whole wall seen at a slant
+    outline = math(tree, "MULTIPLY", math(tree, "POWER", output(facing, "Facing"), 12.0), _value(tree, "Rim Darkness", rim_darkness))
     colour = add(tree, "ShaderNodeVectorMath", operation="SCALE")
     feed(tree, colour, Vector=_plastic_colour(tree, tint_rgb, transmittance), Scale=math(tree, "SUBTRACT", 1.0, outline))
     link(tree, feed(tree, add(tree, "ShaderNodeBsdfTransparent"), Color=output(colour, "Vector")), out)

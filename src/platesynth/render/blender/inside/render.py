@@ -85,7 +85,7 @@ def _image_pass(options: Mapping[str, Any], description: Mapping[str, Any], dire
     bl_scene = bpy.context.scene
     scene.show_pass("image")
     bpy.context.view_layer.material_override = None
-    bl_scene.render.filter_size = 1.5
+    bl_scene.render.filter_size = float(os.environ.get("PS_FILTER", "1.5"))
     if bl_scene.render.engine == "CYCLES":
         cycles = bl_scene.cycles
         cycles.samples = int(options.get("samples", 16))

@@ -52,9 +52,9 @@ def build(description: Mapping[str, Any]) -> dict[str, bpy.types.Object]:
     plate_data = scene_data["plate"]
     well_radius = float(plate_data["well_radius_mm"])
     toward_camera = float(view["toward_camera"])
-    stain = materials.StainInputs(tuple(view["stain_linear_rgb"]), well_radius, scene_data["stain"])
+    stain = materials.StainInputs(tuple(view["stain_linear_rgb"]), well_radius, scene_data["stain"], float(view["pixel_mm"]))
     transmittance = materials.transmittance_group()
-    stain_group = materials.stain_group(transmittance, with_lysis=any(w["lysed"] for w in scene_data["wells"]))
+    stain_group = materials.stain_group(transmittance, stain.pixel_mm, with_lysis=any(w["lysed"] for w in scene_data["wells"]))
     objects: dict[str, bpy.types.Object] = {}
 
     look = scene_data["plate_look"]
