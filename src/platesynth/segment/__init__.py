@@ -5,6 +5,9 @@ Modules, one concern each: :mod:`~platesynth.segment.targets` (star distances, o
 :mod:`~platesynth.segment.data` (normalisation, augmentation, torch Dataset), :mod:`~platesynth.segment.train`,
 :mod:`~platesynth.segment.predict` (polygon NMS, masks), :mod:`~platesynth.segment.matching` (AP, IoU_R) and
 :mod:`~platesynth.segment.counts` (wells by grid position, counts evaluation).
+
+Training is ``platesynth.segment.train.train(TrainConfig(...), model_dir)``; it is not re-exported here, where its
+name would hide the module.
 """
 
 from platesynth.segment.counts import CountMetrics, evaluate_counts, grid_positions, sort_wells
@@ -12,7 +15,7 @@ from platesynth.segment.matching import InstanceMetrics, MatchResult, evaluate_m
 from platesynth.segment.model import ModelConfig, StarDistTwoBranch, load_model, save_model
 from platesynth.segment.predict import nms_polygons, predict_files, predict_image
 from platesynth.segment.targets import branch_targets, object_probability, star_distances
-from platesynth.segment.train import TrainConfig, train, tune_thresholds
+from platesynth.segment.train import TrainConfig, tune_thresholds
 
 __all__ = [
     "CountMetrics",
@@ -35,6 +38,5 @@ __all__ = [
     "save_model",
     "sort_wells",
     "star_distances",
-    "train",
     "tune_thresholds",
 ]

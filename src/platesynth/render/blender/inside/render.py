@@ -19,6 +19,8 @@ import bpy
 from platesynth.render.blender.inside import compositor, materials, scene
 
 ENGINES = ("CYCLES", "BLENDER_EEVEE")
+IMAGE_FILTER_PX = 1.0
+"""Width of the image pass's pixel filter (Blackman-Harris), pixels."""
 DEVICES = ("auto", "CPU", "GPU")
 
 
@@ -85,7 +87,7 @@ def _image_pass(options: Mapping[str, Any], description: Mapping[str, Any], dire
     bl_scene = bpy.context.scene
     scene.show_pass("image")
     bpy.context.view_layer.material_override = None
-    bl_scene.render.filter_size = float(os.environ.get("PS_FILTER", "1.5"))
+    bl_scene.render.filter_size = bl_scene.cycles.filter_width = IMAGE_FILTER_PX
     if bl_scene.render.engine == "CYCLES":
         cycles = bl_scene.cycles
         cycles.samples = int(options.get("samples", 16))
@@ -107,7 +109,7 @@ def _mask_pass(directory: str) -> None:
     cycles.samples = 1
     cycles.use_adaptive_sampling = False
     cycles.use_denoising = False
-    bl_scene.render.filter_size = 0.01
+    bl_scene.cycles.filter_width = 0.01  # Cycles' own setting (render.filter_size is EEVEE's)
     bl_scene.compositing_node_group = compositor.mask_tree(directory)
     bpy.ops.render.render(write_still=False)
 
