@@ -22,3 +22,12 @@ def shared_path(*parts: str) -> Path:
 def shared():
     """Callable fixture: ``shared('weights', 'alexnet_features-7be5be79.pth')``."""
     return shared_path
+
+
+@pytest.fixture
+def offline_weights(shared, monkeypatch, tmp_path):
+    """The developers' AlexNet weights, no download, an empty torch hub cache (so no Inception weights)."""
+    monkeypatch.setenv("PLATESYNTH_WEIGHTS_DIR", str(shared("weights")))
+    monkeypatch.setenv("PLATESYNTH_OFFLINE", "1")
+    monkeypatch.setenv("TORCH_HOME", str(tmp_path / "torch-home"))
+    monkeypatch.delenv("PLATESYNTH_FID_WEIGHTS", raising=False)

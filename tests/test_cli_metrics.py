@@ -54,14 +54,6 @@ def assert_refused(result, *names: str) -> None:
     assert not isinstance(result.exception, Exception) or isinstance(result.exception, SystemExit)
 
 
-@pytest.fixture
-def offline_weights(shared, monkeypatch, tmp_path):
-    """The developers' AlexNet weights, no download, an empty torch hub cache (so no Inception weights)."""
-    monkeypatch.setenv("PLATESYNTH_WEIGHTS_DIR", str(shared("weights")))
-    monkeypatch.setenv("PLATESYNTH_OFFLINE", "1")
-    monkeypatch.setenv("TORCH_HOME", str(tmp_path / "torch-home"))
-    monkeypatch.delenv("PLATESYNTH_FID_WEIGHTS", raising=False)
-
 
 def test_pair_json_equals_library(tmp_path):
     real = save(tmp_path / "real.png", textured(1))

@@ -134,14 +134,6 @@ def test_compare_pair_names_the_constant_image(tmp_path):
         compare_pair(tmp_path / "nothing.png", constant, lpips=False, frechet=False)
 
 
-@pytest.fixture
-def offline_weights(shared, monkeypatch, tmp_path):
-    """The developers' AlexNet weights, no download, an empty torch hub cache (so no Inception weights)."""
-    monkeypatch.setenv("PLATESYNTH_WEIGHTS_DIR", str(shared("weights")))
-    monkeypatch.setenv("PLATESYNTH_OFFLINE", "1")
-    monkeypatch.setenv("TORCH_HOME", str(tmp_path / "torch-home"))
-    monkeypatch.delenv("PLATESYNTH_FID_WEIGHTS", raising=False)
-
 
 def test_compare_pair_with_deep_metrics(offline_weights, shared):
     from platesynth.metrics import get_feature_extractor, lpips_distance, patch_frechet_distance

@@ -65,7 +65,7 @@ def print_table(rows: dict[str, Any], title: str | None = None) -> None:
 
 
 def progress_bar(transient: bool = True) -> Progress:
-    """A rich progress bar on stderr with count, rate-friendly ETA and elapsed time."""
+    """A rich progress bar on stderr with count, ETA and elapsed time; silent when stderr is not a terminal."""
     return Progress(
         TextColumn("[progress.description]{task.description}"),
         BarColumn(),
@@ -74,4 +74,5 @@ def progress_bar(transient: bool = True) -> Progress:
         TimeRemainingColumn(),
         console=console,
         transient=transient,
+        disable=not console.is_terminal,
     )

@@ -29,7 +29,6 @@ def _progress_and_notes() -> Iterator[Callable[[str, int, int], None]]:
 
     tasks: list[Any] = []
     bars = progress_bar()
-    bars.disable = not console.is_terminal  # a finished bar leaves a blank line on a pipe; bars are for people anyway
     with warnings.catch_warnings(record=True) as caught, bars:
         warnings.simplefilter("always", MetricSkippedWarning)
 

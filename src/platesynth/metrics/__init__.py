@@ -22,7 +22,6 @@ from platesynth.metrics.diversity import BrightnessVariability, PixelEntropy, gr
 from platesynth.metrics.naturalness import (
     NaturalnessResult,
     naturalize,
-    naturalness,
     naturalness_factor,
     naturalness_map,
 )
@@ -59,7 +58,6 @@ __all__ = [
     "grayscale",
     "mean_squared_error",
     "naturalize",
-    "naturalness",
     "naturalness_factor",
     "naturalness_map",
     "normalized_root_mse",

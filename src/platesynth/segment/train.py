@@ -30,7 +30,7 @@ from platesynth.segment.data import Augmentation, MixSampler, SegmentationDatase
 from platesynth.segment.loss import segmentation_loss
 from platesynth.segment.matching import match_instances
 from platesynth.segment.model import BRANCHES, ModelConfig, StarDistTwoBranch, save_model, select_device
-from platesynth.segment.predict import nms_polygons, polygons_to_mask, predict_maps
+from platesynth.segment.predict import Polygons, nms_polygons, polygons_to_mask, predict_maps
 
 TRAIN_CONFIG_NAME = "train.json"
 CHECKPOINT_NAME = "checkpoint.pt"
@@ -198,6 +198,9 @@ def tune_thresholds(
     """Per branch, the (probability, NMS) threshold pair with the highest mean AP at ``tau`` over the items.
 
     Ties go to the first pair in the order of the candidate lists. Without items the model's thresholds stay.
+    NMS runs once per NMS threshold, at the lowest probability threshold: a polygon is only ever suppressed by a
+    more probable one, so the polygons kept at a higher threshold are those kept at the lowest that score above it
+    (up to the order of equal scores).
     """
     if not items:
         return {name: (b.prob_thresh, b.nms_thresh) for name, b in model.config.branches.items()}
@@ -206,9 +209,12 @@ def tune_thresholds(
         image, wells, plaques = load_item(item)
         maps, working_shape = predict_maps(model, image)
         for name, truth in (("wells", wells), ("plaques", plaques)):
-            for i, prob in enumerate(prob_thresholds):
-                for j, nms in enumerate(nms_thresholds):
-                    predicted = polygons_to_mask(nms_polygons(maps[name], prob, nms), working_shape, truth.shape)
+            for j, nms in enumerate(nms_thresholds):
+                kept = nms_polygons(maps[name], min(prob_thresholds), nms)
+                for i, prob in enumerate(prob_thresholds):
+                    above = kept.scores > prob
+                    polygons = Polygons(kept.points[above], kept.dist[above], kept.scores[above])
+                    predicted = polygons_to_mask(polygons, working_shape, truth.shape)
                     scores[name][i, j] += match_instances(truth, predicted, tau).ap
     best = {}
     for name, table in scores.items():
