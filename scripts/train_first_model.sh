@@ -15,7 +15,7 @@ MODEL=${MODEL:-runs/plaque12-synthetic}
 # One torch thread: on a busy 2-core machine more threads spin-wait each other and run many times slower.
 THREADS=${THREADS:-1}
 
-# preset, images, seed: 550 images at 512x384 (the model's working size), about 5 minutes with one process
+# preset, images, seed: 550 images at 512x384 (the model's working size), about 10 minutes with one process
 for spec in "high 200 101" "medium 150 102" "low 100 103" "diverse 100 104"; do
     set -- $spec
     platesynth render --out "$DATA/$1" --count "$2" --seed "$3" --preset "$1" --plate 12 --size 512x384

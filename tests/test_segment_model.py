@@ -10,11 +10,11 @@ import torch
 import torch.nn.functional as F
 from skimage.draw import disk
 
-from platesynth.errors import DatasetError
+from platesynth.errors import DatasetError, ParameterError
 from platesynth.segment.data import Augmentation, augment, make_targets, normalize_image, resize_labels
 from platesynth.segment.loss import branch_loss, outside_well_penalty, segmentation_loss
 from platesynth.segment.matching import match_instances
-from platesynth.segment.model import ModelConfig, StarDistTwoBranch, load_model, save_model
+from platesynth.segment.model import ModelConfig, StarDistTwoBranch, load_model, save_model, select_device
 from platesynth.segment.predict import BranchMaps, nms_polygons, polygons_to_mask
 from platesynth.segment.targets import branch_targets, object_probability, star_distances
 
@@ -136,6 +136,22 @@ def test_nms_suppresses_overlapping_candidates():
     assert len(nms_polygons(flat, 0.5, 1.0).points) > 100
 
 
+def test_nms_at_a_low_threshold_contains_the_result_at_a_higher_one():
+    # what threshold tuning relies on: polygons are only suppressed by more probable ones
+    mask = discs((96, 128), [(30, 30, 12), (34, 44, 12), (70, 90, 20), (20, 100, 8)])
+    prob, dist = branch_targets(mask, n_rays=16, grid=2)
+    rng = np.random.default_rng(0)
+    noisy = BranchMaps((prob * 0.8 + rng.uniform(0, 0.2, prob.shape)).astype(np.float32), dist, grid=2)
+    for nms in (0.1, 0.3, 0.5):
+        low = nms_polygons(noisy, 0.1, nms)
+        for prob_thresh in (0.3, 0.5, 0.7):
+            high = nms_polygons(noisy, prob_thresh, nms)
+            above = low.scores > prob_thresh
+            np.testing.assert_array_equal(high.points, low.points[above])
+            np.testing.assert_array_equal(high.scores, low.scores[above])
+        assert len(low.points) > len(nms_polygons(noisy, 0.7, nms).points)
+
+
 def test_augmentation_keeps_image_and_masks_aligned():
     rng = np.random.default_rng(3)
     wells = discs((96, 128), [(48, 40, 20), (48, 90, 20)], np.uint8)
@@ -180,3 +196,13 @@ def test_model_directory_round_trip_and_errors(tmp_path):
     (tmp_path / "m" / "config.json").write_text("{")
     with pytest.raises(DatasetError, match="not a valid model configuration"):
         load_model(tmp_path / "m")
+
+
+def test_device_selection():
+    assert select_device("cpu").type == "cpu"
+    assert select_device("auto").type == ("cuda" if torch.cuda.is_available() else "cpu")
+    with pytest.raises(ParameterError, match="unknown device 'tpu'"):
+        select_device("tpu")
+    if not torch.cuda.is_available():
+        with pytest.raises(ParameterError, match="CUDA is not available"):
+            select_device("cuda")

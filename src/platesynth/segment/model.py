@@ -17,7 +17,7 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_valida
 from torch import nn
 
 from platesynth import __version__
-from platesynth.errors import DatasetError
+from platesynth.errors import DatasetError, ParameterError
 from platesynth.io import atomic_path, write_json
 
 BRANCHES = ("wells", "plaques")
@@ -207,7 +207,19 @@ def load_model(model_dir: str | Path, device: str | torch.device = "cpu") -> Sta
 
 
 def select_device(device: str = "auto") -> torch.device:
-    """``"auto"`` picks CUDA where available, else the CPU; other values are passed to :class:`torch.device`."""
+    """``"auto"`` picks CUDA where available, else the CPU; other values are passed to :class:`torch.device`.
+
+    Raises
+    ------
+    ParameterError
+        For an unknown device name, or CUDA where none is available.
+    """
     if device == "auto":
         return torch.device("cuda" if torch.cuda.is_available() else "cpu")
-    return torch.device(device)
+    try:
+        chosen = torch.device(device)
+    except RuntimeError:
+        raise ParameterError(f"unknown device {device!r} (use auto, cpu or cuda)") from None
+    if chosen.type == "cuda" and not torch.cuda.is_available():
+        raise ParameterError(f"device {device!r} asked for, but CUDA is not available here (use auto or cpu)")
+    return chosen

@@ -52,7 +52,7 @@ class TrainConfig(BaseModel):
     patch: tuple[int, int] = Field((256, 256), description="training patch (height, width) in working pixels")
     learning_rate: float = Field(1e-3, gt=0, description="Adam's learning rate, decayed to 5% along a cosine")
     val_fraction: float = Field(0.1, ge=0, lt=1, description="images of each dataset held out for validation")
-    max_val_images: int = Field(24, ge=1, description="at most this many validation images are evaluated")
+    max_val_images: int = Field(24, ge=1, description="the first this many held-out images (in data order) are evaluated")
     seed: int = Field(0, ge=0)
     augment: bool = True
     lambda_dist: float = Field(0.2, ge=0, description="weight of the distance loss (StarDist: 0.2)")

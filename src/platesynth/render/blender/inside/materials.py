@@ -303,7 +303,9 @@ def plastic_material(name: str, tint_rgb: tuple[float, float, float], transmitta
     # only faces seen nearly edge-on darken (the walls' outlines), not the whole wall seen at a slant
     outline = math(tree, "MULTIPLY", math(tree, "POWER", output(facing, "Facing"), 12.0), _value(tree, "Rim Darkness", rim_darkness))
     colour = add(tree, "ShaderNodeVectorMath", operation="SCALE")
-    feed(tree, colour, Vector=_plastic_colour(tree, tint_rgb, transmittance), Scale=math(tree, "SUBTRACT", 1.0, outline))
+    passing = math(tree, "SUBTRACT", 1.0, outline)
+    passing.use_clamp = True  # Facing leaves [0, 1] on back faces seen at a grazing angle
+    feed(tree, colour, Vector=_plastic_colour(tree, tint_rgb, transmittance), Scale=passing)
     link(tree, feed(tree, add(tree, "ShaderNodeBsdfTransparent"), Color=output(colour, "Vector")), out)
     return material
 

@@ -25,6 +25,7 @@ PLATE_INPUTS = [
     ("Well Depth", "NodeSocketFloat", 17.5),
     ("Floor Thickness", "NodeSocketFloat", 1.0),
     ("Segments", "NodeSocketInt", 128),
+    ("Walls", "NodeSocketBool", False),
 ]
 """The plate groups' modifier inputs: name, socket type, default (mm)."""
 
@@ -49,7 +50,8 @@ def _on_points(group: bpy.types.NodeTree, points: Any, instance: Any) -> bpy.typ
 
 
 def plate_group(material: bpy.types.Material) -> bpy.types.NodeTree:
-    """Geometry nodes making the plate body from the well-centre points (see :data:`PLATE_INPUTS`)."""
+    """Geometry nodes making the plate body from the well-centre points (see :data:`PLATE_INPUTS`): the deck and
+    the outer wall, or with ``Walls`` on the wells' walls."""
     group, group_in, group_out = new_group("platesynth.plate", PLATE_INPUTS)
     points = output(group_in, "Geometry")
     outline = _outline(group, group_in)
@@ -65,10 +67,12 @@ def plate_group(material: bpy.types.Material) -> bpy.types.NodeTree:
     deck = feed(group, add(group, "GeometryNodeFillCurve"), Curve=deck_curves, Mode="N-gons")
     deck = _moved(group, deck, 0.0, 0.0, depth)  # one sheet: seen through, a second face would only cost time
 
-    # the wells' walls: open cones from the floor's radius up to the top edge's
+    # the wells' walls: open cones from the floor's radius up to the top edge's, a hair short of the floor and
+    # the deck (edges shared by two surfaces can trap a ray passing exactly there: black pixels)
     wall = add(group, "GeometryNodeMeshCone", fill_type="NONE")
-    feed(group, wall, Vertices=output(group_in, "Segments"), Radius_Top=top_radius, Radius_Bottom=output(group_in, "Well Radius"), Depth=depth)
-    wall = _moved(group, output(wall, "Mesh"), 0.0, 0.0, math(group, "MULTIPLY", depth, 0.5))
+    gap = 0.01
+    feed(group, wall, Vertices=output(group_in, "Segments"), Radius_Top=top_radius, Radius_Bottom=output(group_in, "Well Radius"), Depth=math(group, "SUBTRACT", depth, 2 * gap))
+    wall = _moved(group, output(wall, "Mesh"), 0.0, 0.0, gap)  # the cone's base is at its origin
     walls = _on_points(group, points, wall)
 
     # the outer wall along the footprint, from the bottom sheet to the plate's full height
@@ -79,8 +83,9 @@ def plate_group(material: bpy.types.Material) -> bpy.types.NodeTree:
     side = _moved(group, side, 0.0, 0.0, side_z)
 
     body = add(group, "GeometryNodeJoinGeometry")
-    for part in (deck, walls, side):
+    for part in (deck, side):
         link(group, part, body)
-    link(group, feed(group, add(group, "GeometryNodeSetMaterial"), Geometry=body, Material=material), group_out)
+    part = feed(group, add(group, "GeometryNodeSwitch", input_type="GEOMETRY"), Switch=output(group_in, "Walls"), **{"False": body, "True": walls})
+    link(group, feed(group, add(group, "GeometryNodeSetMaterial"), Geometry=part, Material=material), group_out)
     return group
 

@@ -82,8 +82,16 @@ def build(description: Mapping[str, Any]) -> dict[str, bpy.types.Object]:
     }
     body_material = materials.plastic_material("platesynth.plastic", *plastic, float(look["rim_darkness"]))
     body = geometry.point_cloud("platesynth.plate_body", _with_z(_world_xy([w["center_mm"] for w in wells]), 0.0), {})
-    geometry.add_modifier(body, plate.plate_group(body_material), plate_inputs)
+    plate_group = plate.plate_group(body_material)
+    geometry.add_modifier(body, plate_group, plate_inputs)
     objects["plate_body"] = _tag(body, "both")
+    # the walls hide parts of the floors from a camera above the plate: they matter for the masks; in the image
+    # a ray grazing a wall's facets can be caught between them (black pixels), and the raster renderer draws the
+    # floor there too
+    walls = bpy.data.objects.new("platesynth.plate_walls", body.data)
+    bpy.context.scene.collection.objects.link(walls)
+    geometry.add_modifier(walls, plate_group, plate_inputs | {"Walls": True})
+    objects["plate_walls"] = _tag(walls, "mask")
 
     plaques = scene_data["plaques"]
     harmonics = max((len(p["fourier"]) for p in plaques), default=0)
