@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import json
+import re
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -133,3 +135,13 @@ def test_demo(tmp_path):
     assert (out / "annotations.coco.json").is_file() and len(read_counts_csv(out / "counts.csv")) == 24
     assert "nf_mean" in result.stdout and "brightness_variability" in result.stdout
     assert read_manifest(out).config["plate"]["format"] == 12
+
+
+def test_demo_counts_plaques_with_the_shipped_model(tmp_path):
+    model = Path(__file__).resolve().parents[1] / "models" / "plaque12-synthetic"
+    out = tmp_path / "demo"
+    result = invoke("demo", "--out", out, "--count", 2, "--size", "320x240", "--model", model)
+    assert result.exit_code == 0, result.output
+    assert "plaques per well" in result.stdout
+    assert re.search(r"n_wells\s+│\s+24\s", result.stdout)  # 2 images x 12 wells, all scored
+    assert re.search(r"n_wells_not_detected\s+│\s+0\s", result.stdout)

@@ -202,6 +202,10 @@ def demo(
     seed: Seed = 0,
     workers: Annotated[int, typer.Option("--workers", "-j", help="Local worker processes.")] = 1,
     overwrite: Annotated[bool, typer.Option("--overwrite", help="Replace a different dataset found in --out.")] = False,
+    model: Annotated[
+        Path | None,
+        typer.Option("--model", help="A trained model directory: also count plaques per well and compare with the truth."),
+    ] = None,
 ) -> None:
     """Render a small 12-well dataset with counts and COCO, a contact sheet, and print its dataset metrics."""
     from platesynth.metrics.dataset import dataset_metrics
@@ -223,8 +227,25 @@ def demo(
         f"COCO in {out / 'annotations.coco.json'}; contact sheet {sheet}",
         highlight=False,
     )
+    if model is not None:
+        _demo_counts(model, out)
     if summary.failed:
         raise typer.Exit(code=1)
+
+
+def _demo_counts(model_dir: Path, out: Path) -> None:
+    """Count plaques per well in the demo images with a trained model, against the counts the renderer wrote."""
+    import functools
+
+    from platesynth.segment.counts import evaluate_counts
+    from platesynth.segment.model import load_model, select_device
+    from platesynth.segment.predict import predict_image
+
+    network = load_model(model_dir, select_device("auto"))
+    predictor = functools.partial(predict_image, network, plate_format=12)
+    report = evaluate_counts(predictor, out / "images", out / "counts.csv", plate_format=12)
+    rows = {key: report[key] for key in ("n_images", "n_wells", "n_wells_not_detected", "mae", "rmse", "pearson_r", "bias")}
+    print_table(rows, title=f"plaques per well: {model_dir} against the rendered truth")
 
 
 def register(app: typer.Typer) -> None:
