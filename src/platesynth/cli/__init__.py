@@ -5,7 +5,7 @@ from __future__ import annotations
 import typer
 
 from platesynth import __version__
-from platesynth.cli import metrics, render, scene, segment
+from platesynth.cli import blender, metrics, render, scene, segment
 
 app = typer.Typer(
     name="platesynth",
@@ -14,7 +14,7 @@ app = typer.Typer(
     pretty_exceptions_enable=False,
     add_completion=False,
 )
-for _module in (metrics, scene, render, segment):
+for _module in (metrics, scene, blender, render, segment):
     _module.register(app)
 
 

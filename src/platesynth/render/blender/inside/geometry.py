@@ -270,3 +270,25 @@ def discs(name: str, centres: np.ndarray, radii: Sequence[float], z: float, attr
     obj = bpy.data.objects.new(name, mesh)
     bpy.context.scene.collection.objects.link(obj)
     return obj
+
+
+def annuli(
+    name: str, centres: np.ndarray, inner: Sequence[float], outer: Sequence[float], z: Sequence[float], attributes: Mapping[str, np.ndarray], segments: int = 128
+) -> bpy.types.Object:
+    """One mesh of flat rings (well rims, wall outlines) around world-xy ``centres`` at heights ``z``;
+    ``attributes`` hold one value (or vector) per ring."""
+    angles = np.linspace(0.0, 2 * np.pi, segments, endpoint=False)
+    ring = np.stack([np.cos(angles), np.sin(angles)], axis=1)
+    vertices, faces = [], []
+    for index, (centre, r_in, r_out, height) in enumerate(zip(centres, inner, outer, z)):
+        start = index * 2 * segments
+        for radius in (r_in, r_out):
+            vertices += [(x, y, height) for x, y in np.asarray(centre) + radius * ring]
+        faces += [(start + i, start + (i + 1) % segments, start + segments + (i + 1) % segments, start + segments + i) for i in range(segments)]
+    mesh = bpy.data.meshes.new(name)
+    mesh.from_pydata(vertices, [], faces)
+    owner = np.repeat(np.arange(len(centres)), 2 * segments)
+    _set_point_attributes(mesh, {key: np.asarray(values)[owner] for key, values in attributes.items()} if len(owner) else {})
+    obj = bpy.data.objects.new(name, mesh)
+    bpy.context.scene.collection.objects.link(obj)
+    return obj

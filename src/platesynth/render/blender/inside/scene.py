@@ -93,6 +93,8 @@ def build(description: Mapping[str, Any]) -> dict[str, bpy.types.Object]:
     geometry.add_modifier(walls, plate_group, plate_inputs | {"Walls": True})
     objects["plate_walls"] = _tag(walls, "mask")
 
+    _rims(scene_data, view, wells, plastic, objects)
+
     plaques = scene_data["plaques"]
     harmonics = max((len(p["fourier"]) for p in plaques), default=0)
     plaque_attributes = _plaque_attributes(plaques, wells, well_attributes, harmonics)
@@ -118,6 +120,45 @@ def build(description: Mapping[str, Any]) -> dict[str, bpy.types.Object]:
         aov = bpy.context.scene.view_layers[0].aovs.add()
         aov.name, aov.type = name, "VALUE"
     return objects
+
+
+def _rims(
+    scene_data: Mapping[str, Any],
+    view: Mapping[str, Any],
+    wells: Sequence[Mapping[str, Any]],
+    plastic: tuple[tuple[float, float, float], float],
+    objects: dict[str, bpy.types.Object],
+) -> None:
+    """What the raster renderer draws of the walls, as films (image pass only): the plastic around each floor
+    (where the floor's film, which carries the plate's tint, ends), darkened over the wall's thickness, and thin
+    outlines at the wall's foot (radius, radius + wall) and top edge (radius + 0.3, + wall) at their heights."""
+    plate_data = scene_data["plate"]
+    radius, wall, depth = (float(plate_data[k]) for k in ("well_radius_mm", "wall_mm", "well_depth_mm"))
+    darkness = float(scene_data["plate_look"]["rim_darkness"])
+    tint, transmittance = np.asarray(plastic[0]), plastic[1]
+    centres = _world_xy([w["center_mm"] for w in wells])
+    line = 0.18  # mm, the raster renderer's outline width
+    floor = -float(view["toward_camera"]) * 0.005  # just behind the floors' film: surfaces must not coincide
+    rings = [  # inner radius, outer radius, height, colour
+        # the deck (tint and transmittance once more) overlaps these where the parallax is small: half each
+        (radius, radius + wall, floor, tint * np.sqrt(transmittance) * (1.0 - 0.25 * darkness)),
+        (radius + wall, radius + wall + 0.6, floor, tint * np.sqrt(transmittance)),
+        (radius - line / 2, radius + line / 2, floor, np.full(3, 1.0 - darkness)),
+        (radius + wall - line / 2, radius + wall + line / 2, floor, np.full(3, 1.0 - 0.6 * darkness)),
+        (radius + 0.3 - line / 2, radius + 0.3 + line / 2, depth - 0.05, np.full(3, 1.0 - 0.8 * darkness)),
+        (radius + 0.3 + wall - line / 2, radius + 0.3 + wall + line / 2, depth - 0.05, np.full(3, 1.0 - 0.5 * darkness)),
+    ]
+    n = len(centres)
+    rims = geometry.annuli(
+        "platesynth.rims",
+        np.concatenate([centres] * len(rings)),
+        np.repeat([r[0] for r in rings], n),
+        np.repeat([r[1] for r in rings], n),
+        np.repeat([r[2] for r in rings], n),
+        {"ink": np.repeat(np.array([r[3] for r in rings]), n, axis=0)},
+    )
+    rims.data.materials.append(materials.ink_material())
+    objects["rims"] = _tag(rims, "image")
 
 
 def _well_attributes(wells: Sequence[Mapping[str, Any]], seed: int) -> dict[str, np.ndarray]:
