@@ -31,3 +31,14 @@ def offline_weights(shared, monkeypatch, tmp_path):
     monkeypatch.setenv("PLATESYNTH_OFFLINE", "1")
     monkeypatch.setenv("TORCH_HOME", str(tmp_path / "torch-home"))
     monkeypatch.delenv("PLATESYNTH_FID_WEIGHTS", raising=False)
+
+
+@pytest.fixture(scope="module")
+def one_torch_thread():
+    """Several torch threads on a busy 2-core machine spin-wait each other (tens of times slower); tests use one."""
+    import torch
+
+    threads = torch.get_num_threads()
+    torch.set_num_threads(1)
+    yield
+    torch.set_num_threads(threads)

@@ -20,14 +20,7 @@ from platesynth.segment.targets import branch_targets, object_probability, star_
 
 TINY = ModelConfig(channels=(4, 8, 8), context_dilations=(2,), input_long_side=64)
 
-
-@pytest.fixture(autouse=True, scope="module")
-def _one_torch_thread():
-    """Several torch threads on a busy 2-core machine spin-wait each other (tens of times slower); tests use one."""
-    threads = torch.get_num_threads()
-    torch.set_num_threads(1)
-    yield
-    torch.set_num_threads(threads)
+pytestmark = pytest.mark.usefixtures("one_torch_thread")
 
 
 def discs(shape, specs, dtype=np.uint16):

@@ -27,14 +27,7 @@ from platesynth.segment.train import CHECKPOINT_NAME, TrainConfig, split_items, 
 runner = CliRunner()
 TINY = ModelConfig(channels=(8, 12, 16), context_dilations=(2,), input_long_side=128)
 
-
-@pytest.fixture(autouse=True, scope="module")
-def _one_torch_thread():
-    """Several torch threads on a busy 2-core machine spin-wait each other (tens of times slower); tests use one."""
-    threads = torch.get_num_threads()
-    torch.set_num_threads(1)
-    yield
-    torch.set_num_threads(threads)
+pytestmark = pytest.mark.usefixtures("one_torch_thread")
 
 
 def invoke(*args: str):
