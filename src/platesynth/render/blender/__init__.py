@@ -39,7 +39,7 @@ from platesynth.scene.params import Scene
 
 ENGINES = ("CYCLES", "BLENDER_EEVEE")
 DEVICES = ("auto", "CPU", "GPU")
-DEFAULT_SAMPLES = 4
+DEFAULT_SAMPLES = 3
 
 
 def bpy_available() -> bool:

@@ -76,7 +76,7 @@ def describe_scene(scene: Scene, size: tuple[int, int]) -> dict[str, Any]:
     plate = scene.plate
     from_below = scene.camera.from_below
     gains = np.asarray(color_temperature_rgb(scene.lighting.color_temperature_k))
-    gains = gains / gains.max()
+    gains = srgb_to_linear(gains / gains.max())  # as the raster renderer: the gains are display-encoded
     # what the plate rests on: its bottom sheet (seen from above) or its top (seen from below, upside down)
     support_z = plate.height_mm - FLOOR_THICKNESS_MM + 0.01 if from_below else -FLOOR_THICKNESS_MM - 0.01
     return {

@@ -1,9 +1,8 @@
 """Blender's compositor: the camera and post-processing effects on the image pass, and the mask pass's output.
 
 The image chain follows the raster renderer's order: in linear light exposure and the light's colour
-(its colour temperature, normalised to its strongest channel), vignetting and glare, then the
-optical blur; then gamma encoding (1/2.2) and, on the encoded image, the enabled post-processing effects
-(brightness, white balance, clarity, motion blur, shadows, chromatic aberration, bloom, sharpening, sensor
+(its colour temperature, normalised to its strongest channel), vignetting and glare; then the sRGB encoding and,
+on the encoded image, the optical blur and the enabled post-processing effects (brightness, white balance, clarity, motion blur, shadows, chromatic aberration, bloom, sharpening, sensor
 noise). Lengths given for 1024-pixel-wide images are scaled by ``px_scale``. Each effect's strength is a
 named node input, so the .blend shows and lets one change them. JPEG compression is not a compositor effect:
 the host applies it to the written image.
@@ -142,11 +141,11 @@ def image_tree(scene_data: Mapping[str, Any], view: Mapping[str, Any], directory
     glare = chain.math("MULTIPLY", chain.value("Glare Strength", float(lighting["glare_strength"])), chain.math("EXPONENT", chain.math("DIVIDE", glare_distance2, -glare_width2)))
     chain.image = chain.mix("ADD", chain.gray(glare))
 
+    encode = add(tree, "CompositorNodeConvertColorSpace", name="Display Encoding", from_color_space="Linear Rec.709", to_color_space="sRGB")
+    chain.image = output(feed(tree, encode, Image=chain.image), "Image")
     sigma = float(scene_data["camera"]["defocus_px"]) * px_scale
-    if sigma > 0.05:
+    if sigma > 0.05:  # the optical blur, on the encoded image as the raster renderer does it
         chain.image = chain.blur(chain.image, sigma)
-    gamma = feed(tree, add(tree, "ShaderNodeGamma", name="Display Gamma"), Color=chain.image, Gamma=1.0 / 2.2)
-    chain.image = output(gamma, "Color")
     _post(chain, scene_data["post"], int(scene_data["seed"]), px_scale, width, height)
 
     link(tree, chain.image, group_out.inputs[0])
@@ -193,14 +192,17 @@ def _post(chain: _Chain, post: Mapping[str, Any], seed: int, px_scale: float, wi
             total = shifted if total is None else chain.mix("ADD", shifted, a=total)
         chain.image = chain.mix("MULTIPLY", (1.0 / (steps + 1),) * 3 + (1.0,), a=total)
     if (strength := enabled("shadows")) is not None:
-        # a field this smooth needs no full-resolution noise: evaluate it on a 1/16 image, the mix upsamples it
+        # a field this smooth needs no full-resolution noise: evaluate it on a 1/16 image and sample that back at
+        # every pixel (Map UV keeps the full image's size)
         small = add(tree, "CompositorNodeScale")
         feed(tree, small, Image=chain.image, X=1.0 / 16, Y=1.0 / 16)
         small_coordinates = feed(tree, add(tree, "CompositorNodeImageCoordinates"), Image=output(small, "Image"))
         noise = add(tree, "ShaderNodeTexNoise", noise_dimensions="4D", name="Shadow Field")
         feed(tree, noise, Vector=output(small_coordinates, "Normalized"), Scale=2.0, Detail=0.0, W=float(seed % 1000) + 0.5)
         field = chain.math("MULTIPLY", chain.value("Shadows", strength), output(noise, "Factor"))
-        chain.image = chain.mix("MULTIPLY", chain.gray(chain.math("SUBTRACT", 1.0, field)))
+        u, v = chain.normalized()
+        full = chain.resampled(chain.gray(chain.math("SUBTRACT", 1.0, field)), u, v)
+        chain.image = chain.mix("MULTIPLY", full)
     if (strength := enabled("chromatic_aberration")) is not None:
         # red scaled outward and blue inward about the centre by the strength (px at the corners)
         half_diagonal = 0.5 * math.hypot(width, float(chain_height))
