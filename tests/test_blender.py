@@ -224,14 +224,12 @@ def test_an_error_inside_blender_is_an_error_for_the_user(pool):
 @needs_bpy
 def test_export_writes_a_blend_file_and_the_cli_command(pool, tmp_path):
     from platesynth.cli import app
-    from platesynth.cli import blender as blender_cli
 
     scene = scene_with_plaques()
     target = export_blend(scene, tmp_path / "plate.blend", SIZE, pool=pool)
     assert target.stat().st_size > 10_000
     assert [p.name for p in tmp_path.iterdir()] == ["plate.blend"]  # no temporary file left behind
 
-    blender_cli.register(app)
     saved = tmp_path / "scene.json"
     saved.write_text(json.dumps(scene.model_dump(mode="json")))
     runner = CliRunner()
