@@ -417,6 +417,24 @@ def test_failed_item_is_recorded_and_retried(tmp_path, monkeypatch):
     assert read_manifest(tmp_path).failed == {}
 
 
+def test_a_failure_records_the_renderers_log_in_the_manifest(tmp_path, monkeypatch):
+    import platesynth.data.batch as batch
+
+    class LoggedError(RenderError):
+        def __init__(self) -> None:
+            super().__init__("Blender failed: out of memory")
+            self.log = "line 1 of the log\nError: out of memory"
+
+    def broken_render(scene, size, backend):
+        raise LoggedError()
+
+    monkeypatch.setattr(batch, "render", broken_render)
+    summary = render_dataset(tmp_path, build_manifest(count=1, **SMALL))
+    error = read_manifest(tmp_path).failed["000000"]
+    assert error == summary.failed["000000"]
+    assert error.splitlines()[0] == "LoggedError: Blender failed: out of memory"
+    assert error.endswith("line 1 of the log\nError: out of memory")
+
 def mark_worker(directory) -> None:
     """Worker setup used by the tests: leaves a file named after the worker's process id."""
     (directory / str(os.getpid())).write_text("set up")

@@ -103,7 +103,7 @@ def _report(summary: BatchSummary, as_json: bool) -> None:
         highlight=False,
     )
     for name, error in list(summary.failed.items())[:10]:
-        console.print(f"[bold red]failed:[/] {name}: {error}", highlight=False, soft_wrap=True)
+        console.print(f"[bold red]failed:[/] {name}: {error.splitlines()[0]}", highlight=False, soft_wrap=True)
     if len(summary.failed) > 10:
         console.print(f"... and {len(summary.failed) - 10} more (see manifest.json)", highlight=False)
 

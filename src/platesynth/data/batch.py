@@ -124,6 +124,18 @@ def rerender(params: dict[str, Any] | DatasetItem) -> RenderResult:
     return render(scene, size=tuple(params["size"]), backend=params["backend"])
 
 
+MAX_LOG_CHARS = 8000
+
+
+def describe_failure(exc: Exception) -> str:
+    """One line naming the error, followed by the renderer's log (e.g. Blender's, its last part) where it has one."""
+    text = f"{type(exc).__name__}: {exc}"
+    log = getattr(exc, "log", "") or ""
+    if log:
+        text += f"\n--- renderer log (last {MAX_LOG_CHARS} characters) ---\n{log[-MAX_LOG_CHARS:]}"
+    return text
+
+
 @dataclass(frozen=True)
 class ItemRecord:
     """What a worker reports about one item: its index and name, the error if rendering failed, the time taken."""
@@ -150,7 +162,7 @@ class RenderTask:
         try:
             result, params = render_item(self.manifest, index)
         except Exception as exc:  # noqa: BLE001 -- any renderer failure is recorded and the batch continues
-            return ItemRecord(index, name, f"{type(exc).__name__}: {exc}", time.perf_counter() - start)
+            return ItemRecord(index, name, describe_failure(exc), time.perf_counter() - start)
         try:
             write_item(item_paths(self.directory, name), result, params)
         except OSError as exc:
