@@ -76,6 +76,7 @@ def bad_configs(tmp_path):
         (["--preset", "nope"], "unknown preset 'nope'"),
         (["--size", "1024by768"], "size '1024by768': expected WIDTHxHEIGHT"),
         (["--size", "0x768"], "expected WIDTHxHEIGHT"),
+        (["--size", "8x8"], "size 8x8 is out of range: each side must be in [16, 16384] pixels"),
         (["--count", "0"], "count must be > 0, got 0"),
         (["--count", "-3"], "count must be > 0, got -3"),
         (["--config", "{dir}/missing.yaml"], "missing.yaml: no such configuration file"),

@@ -22,7 +22,7 @@ from platesynth.data.layout import DatasetItem, Manifest, item_name, item_paths,
 from platesynth.data.writer import finished_items, prepare_directory, write_counts_csv, write_item, write_manifest
 from platesynth.errors import DatasetError, ParameterError
 from platesynth.render import BACKENDS, render
-from platesynth.render.result import RenderResult
+from platesynth.render.result import RenderResult, check_size
 from platesynth.scene import Scene, SceneConfig, load_config, sample_scene
 
 
@@ -69,9 +69,7 @@ def build_manifest(
         raise ParameterError(f"count must be > 0, got {count}")
     if seed < 0:
         raise ParameterError(f"seed must be >= 0, got {seed}")
-    width, height = size
-    if min(width, height) < 1:
-        raise ParameterError(f"size {width}x{height}: width and height must be positive")
+    width, height = check_size(size)
     if backend not in BACKENDS:
         raise ParameterError(f"unknown backend {backend!r} (choose from {', '.join(BACKENDS)})")
     config = load_config(preset=preset, path=config_file, overrides=overrides)

@@ -22,7 +22,7 @@ from scipy import ndimage
 from platesynth.errors import ParameterError
 from platesynth.render import _kernels as kernels
 from platesynth.render import postprocess
-from platesynth.render.result import RenderResult, WellInfo
+from platesynth.render.result import RenderResult, WellInfo, check_size
 from platesynth.scene.params import PlateGeometry, Scene, Well
 from platesynth.scene.sample import color_temperature_rgb, stain_rgb
 
@@ -87,16 +87,6 @@ def camera_view(scene: Scene, width: int, height: int) -> View:
         principal_mm=(float(principal[0] / principal[2]), float(principal[1] / principal[2])),
         mirror=mirror,
     )
-
-
-def _check_size(size: tuple[int, int]) -> tuple[int, int]:
-    try:
-        width, height = (int(s) for s in size)
-    except (TypeError, ValueError):
-        raise ParameterError(f"size must be (width, height), got {size!r}") from None
-    if not (16 <= width <= 16384 and 16 <= height <= 16384):
-        raise ParameterError(f"size {width}x{height} is out of range: each side must be in [16, 16384] pixels")
-    return width, height
 
 
 def srgb_to_linear(rgb: np.ndarray) -> np.ndarray:
@@ -229,7 +219,7 @@ def render_raster(scene: Scene, size: tuple[int, int] = (1024, 768)) -> RenderRe
         RGB uint8 image, uint8 well mask (ids as in ``scene.wells``), uint16 plaque mask (visible plaques
         numbered 1..m in the scene's drawing order). The same scene and size give byte-identical arrays.
     """
-    width, height = _check_size(size)
+    width, height = check_size(size)
     view = camera_view(scene, width, height)
     hinv = view.px_to_plate
     pixel_mm = 1.0 / view.px_per_mm

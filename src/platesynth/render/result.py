@@ -6,6 +6,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from platesynth.errors import ParameterError
+
+MIN_SIDE, MAX_SIDE = 16, 16384
+
 
 @dataclass(frozen=True)
 class WellInfo:
@@ -70,3 +74,22 @@ def plaque_counts(wells: np.ndarray, plaques: np.ndarray, well_ids: list[int] | 
         if int(well) in counts:
             counts[int(well)] += 1
     return counts
+
+
+def check_size(size: tuple[int, int]) -> tuple[int, int]:
+    """Validate an image size ``(width, height)`` for any renderer.
+
+    Raises
+    ------
+    ParameterError
+        If it is not two integers, each in [16, 16384] pixels.
+    """
+    try:
+        width, height = (int(s) for s in size)
+    except (TypeError, ValueError):
+        raise ParameterError(f"size must be (width, height), got {size!r}") from None
+    if not (MIN_SIDE <= width <= MAX_SIDE and MIN_SIDE <= height <= MAX_SIDE):
+        raise ParameterError(
+            f"size {width}x{height} is out of range: each side must be in [{MIN_SIDE}, {MAX_SIDE}] pixels"
+        )
+    return width, height

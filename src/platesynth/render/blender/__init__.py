@@ -34,7 +34,7 @@ from platesynth.render.blender.pool import (
     default_pool,
     setting_from_env,
 )
-from platesynth.render.result import RenderResult, WellInfo
+from platesynth.render.result import RenderResult, WellInfo, check_size
 from platesynth.scene.params import Scene
 
 ENGINES = ("CYCLES", "BLENDER_EEVEE")
@@ -48,12 +48,7 @@ def bpy_available() -> bool:
 
 
 def _check(size: tuple[int, int], samples: int, engine: str, device: str) -> tuple[int, int]:
-    try:
-        width, height = (int(s) for s in size)
-    except (TypeError, ValueError):
-        raise ParameterError(f"size must be (width, height), got {size!r}") from None
-    if not (16 <= width <= 16384 and 16 <= height <= 16384):
-        raise ParameterError(f"size {width}x{height} is out of range: each side must be in [16, 16384] pixels")
+    width, height = check_size(size)
     if not 1 <= int(samples) <= 4096:
         raise ParameterError(f"samples must be in [1, 4096], got {samples}")
     if engine not in ENGINES:
