@@ -296,8 +296,25 @@ def marks_material(transmittance: bpy.types.NodeTree, stain: StainInputs) -> bpy
     return material
 
 
-def plastic_material(name: str, tint_rgb: tuple[float, float, float], transmittance: float, rim_darkness: float) -> bpy.types.Material:
-    """Polystyrene: tinted see-through plastic whose grazing faces (the walls seen edge-on) pass less light."""
+def _relief_factor(tree: bpy.types.NodeTree, relief: bpy.types.Image, texels_per_mm: float, strength: float) -> bpy.types.NodeSocket:
+    """``1 - strength * relief`` with the raster renderer's plate-space relief image (its row 0 at plate y = 0,
+    stored bottom row first) looked up at the surface's world position ``(x, -y)``."""
+    position = output(add(tree, "ShaderNodeTexCoord"), "Object")
+    height_mm, width_mm = relief.size[1] / texels_per_mm, relief.size[0] / texels_per_mm
+    uv = add(tree, "ShaderNodeMapping", vector_type="POINT")
+    feed(tree, uv, Vector=position, Location=(0.0, 1.0, 0.0), Scale=(1.0 / width_mm, 1.0 / height_mm, 0.0))
+    texture = add(tree, "ShaderNodeTexImage", interpolation="Linear", extension="CLIP")
+    texture.image = relief
+    link(tree, uv, texture)
+    factor = math(tree, "SUBTRACT", 1.0, math(tree, "MULTIPLY", output(texture, "Color"), _value(tree, "Label Strength", strength)))
+    return math(tree, "MAXIMUM", factor, 0.0)
+
+
+def plastic_material(
+    name: str, tint_rgb: tuple[float, float, float], transmittance: float, rim_darkness: float, relief: tuple[bpy.types.Image, float, float] | None = None
+) -> bpy.types.Material:
+    """Polystyrene: tinted see-through plastic whose grazing faces (the walls seen edge-on) pass less light;
+    ``relief`` = (image, texels per mm, label strength) adds the embossed labels, label rings and ribs."""
     material, tree, out = _new_material(name)
     facing = feed(tree, add(tree, "ShaderNodeLayerWeight"), Blend=0.5)
     # only faces seen nearly edge-on darken (the walls' outlines), not the whole wall seen at a slant
@@ -305,6 +322,8 @@ def plastic_material(name: str, tint_rgb: tuple[float, float, float], transmitta
     colour = add(tree, "ShaderNodeVectorMath", operation="SCALE")
     passing = math(tree, "SUBTRACT", 1.0, outline)
     passing.use_clamp = True  # Facing leaves [0, 1] on back faces seen at a grazing angle
+    if relief is not None:
+        passing = math(tree, "MULTIPLY", passing, _relief_factor(tree, *relief))
     feed(tree, colour, Vector=_plastic_colour(tree, tint_rgb, transmittance), Scale=passing)
     link(tree, feed(tree, add(tree, "ShaderNodeBsdfTransparent"), Color=output(colour, "Vector")), out)
     return material

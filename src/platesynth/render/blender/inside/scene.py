@@ -21,6 +21,8 @@ import numpy as np
 from mathutils import Matrix
 
 from platesynth.render.blender.inside import geometry, materials, plate
+from platesynth.render.raster import plate_relief, texels_per_mm
+from platesynth.scene.params import PlateGeometry
 
 PASS_PROPERTY = "platesynth_pass"
 RULER_WIDTH_MM = 22.0
@@ -80,7 +82,7 @@ def build(description: Mapping[str, Any]) -> dict[str, bpy.types.Object]:
         "Well Depth": plate_data["well_depth_mm"],
         "Floor Thickness": view["floor_thickness_mm"],
     }
-    body_material = materials.plastic_material("platesynth.plastic", *plastic, float(look["rim_darkness"]))
+    body_material = materials.plastic_material("platesynth.plastic", *plastic, float(look["rim_darkness"]), _relief(scene_data, view))
     body = geometry.point_cloud("platesynth.plate_body", _with_z(_world_xy([w["center_mm"] for w in wells]), 0.0), {})
     plate_group = plate.plate_group(body_material)
     geometry.add_modifier(body, plate_group, plate_inputs)
@@ -122,6 +124,19 @@ def build(description: Mapping[str, Any]) -> dict[str, bpy.types.Object]:
     return objects
 
 
+def _relief(scene_data: Mapping[str, Any], view: Mapping[str, Any]) -> tuple[bpy.types.Image, float, float]:
+    """The raster renderer's plate-space relief (embossed labels, label rings, frame and ribs) as a float image,
+    its texels per mm and the plate's label strength."""
+    k = texels_per_mm(1.0 / float(view["pixel_mm"]))
+    relief = plate_relief(PlateGeometry.model_validate(scene_data["plate"]), k)
+    image = bpy.data.images.new("platesynth.relief", relief.shape[1], relief.shape[0], float_buffer=True, is_data=True)
+    rgba = np.repeat(relief[::-1, :, None], 4, axis=2)
+    rgba[..., 3] = 1.0
+    image.pixels.foreach_set(rgba.astype(np.float32).ravel())
+    image.pack()
+    return image, k, float(scene_data["plate_look"]["label_strength"])
+
+
 def _rims(
     scene_data: Mapping[str, Any],
     view: Mapping[str, Any],
@@ -138,13 +153,14 @@ def _rims(
     tint, transmittance = np.asarray(plastic[0]), plastic[1]
     centres = _world_xy([w["center_mm"] for w in wells])
     line = 0.18  # mm, the raster renderer's outline width
-    floor = -float(view["toward_camera"]) * 0.005  # just behind the floors' film: surfaces must not coincide
+    # just behind the floors' film, each ring at its own height: overlapping films must not coincide
+    step = -float(view["toward_camera"]) * 0.005
     rings = [  # inner radius, outer radius, height, colour
         # the deck (tint and transmittance once more) overlaps these where the parallax is small: half each
-        (radius, radius + wall, floor, tint * np.sqrt(transmittance) * (1.0 - 0.25 * darkness)),
-        (radius + wall, radius + wall + 0.6, floor, tint * np.sqrt(transmittance)),
-        (radius - line / 2, radius + line / 2, floor, np.full(3, 1.0 - darkness)),
-        (radius + wall - line / 2, radius + wall + line / 2, floor, np.full(3, 1.0 - 0.6 * darkness)),
+        (radius, radius + wall, step, tint * np.sqrt(transmittance) * (1.0 - 0.25 * darkness)),
+        (radius + wall, radius + wall + 0.6, 2 * step, tint * np.sqrt(transmittance)),
+        (radius - line / 2, radius + line / 2, 3 * step, np.full(3, 1.0 - darkness)),
+        (radius + wall - line / 2, radius + wall + line / 2, 4 * step, np.full(3, 1.0 - 0.6 * darkness)),
         (radius + 0.3 - line / 2, radius + 0.3 + line / 2, depth - 0.05, np.full(3, 1.0 - 0.8 * darkness)),
         (radius + 0.3 + wall - line / 2, radius + 0.3 + wall + line / 2, depth - 0.05, np.full(3, 1.0 - 0.5 * darkness)),
     ]
