@@ -174,12 +174,19 @@ def _image_paths(inputs: list[Path]) -> list[Path]:
     return paths
 
 
-def _thresholds(model: Any, overrides: dict[str, tuple[float | None, float | None]]) -> dict[str, tuple[float, float]]:
+def _load_network(
+    model_dir: Path, device: str, threads: int, well: tuple[float | None, float | None], plaque: tuple[float | None, float | None]
+) -> tuple[Any, dict[str, tuple[float, float]]]:
+    """The trained network and its per-branch (prob, nms) thresholds: the model's own unless overridden."""
+    from platesynth.segment.model import load_model, select_device
+
+    _set_threads(threads)
+    network = load_model(model_dir, select_device(device))
     thresholds = {}
-    for name, (prob, nms) in overrides.items():
-        branch = model.config.branches[name]
+    for name, (prob, nms) in {"wells": well, "plaques": plaque}.items():
+        branch = network.config.branches[name]
         thresholds[name] = (branch.prob_thresh if prob is None else prob, branch.nms_thresh if nms is None else nms)
-    return thresholds
+    return network, thresholds
 
 
 def _with_progress(description: str, run: Any) -> Any:
@@ -210,13 +217,10 @@ def predict_command(
     threads: Threads = 0,
 ) -> None:
     """Predict well and plaque instance masks and plaques per well (counts.csv) for plate images."""
-    from platesynth.segment.model import load_model, select_device
     from platesynth.segment.predict import predict_files
 
-    _set_threads(threads)
-    network = load_model(model, select_device(device))
+    network, thresholds = _load_network(model, device, threads, (well_prob, well_nms), (plaque_prob, plaque_nms))
     paths = _image_paths(images)
-    thresholds = _thresholds(network, {"wells": (well_prob, well_nms), "plaques": (plaque_prob, plaque_nms)})
 
     def run(progress: Any) -> Path:
         done = iter(range(1, len(paths) + 1))
@@ -258,15 +262,12 @@ def evaluate_masks_command(
 ) -> None:
     """Per class, AP = TP/(TP+FP+FN) and IoU_R at each tau: mean and spread over images."""
     from platesynth.segment.matching import evaluate_masks
-    from platesynth.segment.model import load_model, select_device
     from platesynth.segment.predict import predict_image
 
     taus = tuple(tau or (0.5,))
     if any(not 0 < t <= 1 for t in taus):
         raise ParameterError(f"--tau must be in (0, 1], got {', '.join(map(str, taus))}")
-    _set_threads(threads)
-    network = load_model(model, select_device(device))
-    thresholds = _thresholds(network, {"wells": (well_prob, well_nms), "plaques": (plaque_prob, plaque_nms)})
+    network, thresholds = _load_network(model, device, threads, (well_prob, well_nms), (plaque_prob, plaque_nms))
     predictor = functools.partial(predict_image, network, thresholds=thresholds)
     report = _with_progress("evaluating", lambda progress: evaluate_masks(predictor, data, taus, progress))
     if as_json:
@@ -284,7 +285,6 @@ def evaluate_counts_command(
     plate: PlateFormat = None,
     from_below: FromBelow = True,
     table: Annotated[Path | None, typer.Option("--table", help="Also write the per-well table to this CSV file.")] = None,
-    tau: Annotated[list[float] | None, typer.Option("--tau", help="IoU threshold; repeatable (default 0.5).")] = None,
     well_prob: WellProb = None,
     well_nms: WellNms = None,
     plaque_prob: PlaqueProb = None,
@@ -295,13 +295,10 @@ def evaluate_counts_command(
 ) -> None:
     """Predicted plaques per well against a person's counts: MAE, RMSE, Pearson r, and the training-mean baseline."""
     from platesynth.segment.counts import evaluate_counts, write_count_table
-    from platesynth.segment.model import load_model, select_device
     from platesynth.segment.predict import predict_image
 
-    _set_threads(threads)
-    network = load_model(model, select_device(device))
+    network, thresholds = _load_network(model, device, threads, (well_prob, well_nms), (plaque_prob, plaque_nms))
     plate_format = plate or network.config.plate_format
-    thresholds = _thresholds(network, {"wells": (well_prob, well_nms), "plaques": (plaque_prob, plaque_nms)})
     predictor = functools.partial(predict_image, network, thresholds=thresholds, plate_format=plate_format, from_below=from_below)
     baseline = network.config.training.get("mean_plaques_per_well")
     baseline = baseline if isinstance(baseline, (int, float)) and math.isfinite(baseline) else None
