@@ -237,6 +237,7 @@ def _demo_counts(model_dir: Path, out: Path) -> None:
     """Count plaques per well in the demo images with a trained model, against the counts the renderer wrote."""
     import functools
 
+    from platesynth.cli.segment import print_count_summary
     from platesynth.segment.counts import evaluate_counts
     from platesynth.segment.model import load_model, select_device
     from platesynth.segment.predict import predict_image
@@ -244,8 +245,7 @@ def _demo_counts(model_dir: Path, out: Path) -> None:
     network = load_model(model_dir, select_device("auto"))
     predictor = functools.partial(predict_image, network, plate_format=12)
     report = evaluate_counts(predictor, out / "images", out / "counts.csv", plate_format=12)
-    rows = {key: report[key] for key in ("n_images", "n_wells", "n_wells_not_detected", "mae", "rmse", "pearson_r", "bias")}
-    print_table(rows, title=f"plaques per well: {model_dir} against the rendered truth")
+    print_count_summary(report, title=f"plaques per well: {model_dir} against the rendered truth")
 
 
 def register(app: typer.Typer) -> None:

@@ -311,10 +311,15 @@ def evaluate_counts_command(
     if as_json:
         print_json(report)
         return
+    print_count_summary(report, title="plaques per well")
+
+
+def print_count_summary(report: dict[str, Any], title: str) -> None:
+    """Print the summary of an :func:`~platesynth.segment.counts.evaluate_counts` report as a table."""
     rows = {key: report[key] for key in ("n_images", "n_wells", "n_wells_not_detected", "mae", "rmse", "pearson_r", "bias")}
     if "baseline" in report:
         rows.update({f"baseline ({report['baseline']['count']:.2f}/well) {k}": report["baseline"][k] for k in ("mae", "rmse")})
-    print_table(rows, title="plaques per well")
+    print_table(rows, title=title)
 
 
 def register(app: typer.Typer) -> None:
