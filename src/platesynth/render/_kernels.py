@@ -16,6 +16,10 @@ from numba import njit, prange
 W_ID, W_CX, W_CY, W_TOP_CX, W_TOP_CY, W_DENSITY, W_GRADIENT, W_COS, W_SIN, W_OFF_X, W_OFF_Y, W_DRYING, W_LYSED, \
     W_EMPTIED, W_NOISE_X, W_NOISE_Y = range(16)
 N_WELL_PARAMS = 16
+FLOOR_TRANSMITTANCE = 0.96
+"""Share of the light a well's thin bottom passes (the thick plastic between the wells passes ``plate_look.transmittance``)."""
+WALL_BAND_GAIN = 0.04
+"""How much brighter the plate looks over a well's wall, seen end-on, than over the deck around it."""
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -293,7 +297,7 @@ def shade(
                         ink_b = w00 * ink[i, j, 2] + w01 * ink[i, j + 1, 2] + w10 * ink[i + 1, j, 2] + w11 * ink[i + 1, j + 1, 2]
                 skirt_shade = 1.0 - 0.25 * _clip01((signed + skirt) / skirt)
                 # the thick plastic between the wells passes less light than a well's thin bottom
-                plastic = (transmittance * (1.0 - disc) + 0.96 * disc) * (1.0 + 0.04 * band - rim_dark * min(outlines, 1.0))
+                plastic = (transmittance * (1.0 - disc) + FLOOR_TRANSMITTANCE * disc) * (1.0 + WALL_BAND_GAIN * band - rim_dark * min(outlines, 1.0))
                 plastic *= (1.0 - relief) * skirt_shade
                 # blots: soft smudges on the plate
                 blot_r = 1.0

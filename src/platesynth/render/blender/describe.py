@@ -99,10 +99,6 @@ def describe_scene(scene: Scene, size: tuple[int, int]) -> dict[str, Any]:
             "stain_linear_rgb": srgb_to_linear(stain_rgb(scene.stain)).tolist(),
             "desk_linear_rgb": srgb_to_linear(scene.background.color_rgb).tolist(),
             "marker_linear_rgb": [srgb_to_linear(s.color_rgb).tolist() for s in scene.artifacts.marker],
-            # a blot tints the plastic like the raster renderer's ink layer: its colour over white by its opacity
-            "blot_linear_rgb": [
-                srgb_to_linear(1.0 - b.opacity * (1.0 - np.asarray(b.color_rgb))).tolist() for b in scene.artifacts.blots
-            ],
             "px_scale": width / REFERENCE_WIDTH,
             "pixel_mm": 1.0 / view.px_per_mm,
         },

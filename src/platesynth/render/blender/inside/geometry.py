@@ -152,7 +152,10 @@ def plaques_group(material: bpy.types.Material, harmonics: int) -> bpy.types.Nod
     coefficients ``fourier_a{k}``/``fourier_b{k}`` for ``k = 2 .. harmonics + 1``; the outline is
     ``r(t) = radius * (1 + sum_k a_k cos(k t) + b_k sin(k t))`` with ``t`` the angle in plate coordinates
     (y down). With ``Fringe`` on, each plaque is instead a ring from its outline out to the outline grown by
-    ``Margin * softness * radius``: the part of the fuzzy edge outside the outline (image pass only).
+    ``Margin * softness * radius``: the part of the fuzzy edge outside the outline (image pass only). ``Core
+    Shrink`` 1 moves a disc's rim (a ring's inner edge) in by the edge's width ``softness * radius``: the image
+    pass's fully cleared cores, above the rings of every frayed edge, so that overlapping plaques clear as their
+    union does where one plaque's core meets another's edge.
     Points beyond the well's radius are pulled back onto its circle. Discs are stacked ``Layer Step`` apart
     (negative where the camera looks from below), starting ``Layer Offset`` steps above ``Floor Height``.
     """
@@ -166,6 +169,7 @@ def plaques_group(material: bpy.types.Material, harmonics: int) -> bpy.types.Nod
             ("Layer Offset", "NodeSocketFloat", 0.0),
             ("Fringe", "NodeSocketBool", False),
             ("Margin", "NodeSocketFloat", 0.0),
+            ("Core Shrink", "NodeSocketFloat", 0.0),
             ("Radius Scale", "NodeSocketFloat", 1.0),
             ("Irregularity Scale", "NodeSocketFloat", 1.0),
         ],
@@ -194,11 +198,16 @@ def plaques_group(material: bpy.types.Material, harmonics: int) -> bpy.types.Nod
     outer = math(group, "GREATER_THAN", relative, 1.5)  # a fringe ring's outer edge
     # the signed distance to the outline in edge widths (softness * radius), interpolated across the faces:
     # 0 on the outline, -1/softness at the centre, Margin at a fringe's outer edge
-    inverse_softness = math(group, "DIVIDE", -1.0, math(group, "MAXIMUM", _named(group, "softness"), 0.01))
+    softness = math(group, "MAXIMUM", _named(group, "softness"), 0.01)
+    inverse_softness = math(group, "DIVIDE", -1.0, softness)
+    # with Core Shrink, rims (a disc's rim, a ring's inner edge) move in by one edge width (at most 0.9 radius)
+    inner_rim = math(group, "MULTIPLY", math(group, "GREATER_THAN", relative, 0.5), math(group, "SUBTRACT", 1.0, outer))
+    shrink = math(group, "MULTIPLY", math(group, "MULTIPLY", math(group, "MINIMUM", softness, 0.9), output(group_in, "Core Shrink")), inner_rim)
     signed_w = math(group, "MULTIPLY_ADD", math(group, "LESS_THAN", relative, 0.5), inverse_softness, math(group, "MULTIPLY", outer, output(group_in, "Margin")))
+    signed_w = math(group, "SUBTRACT", signed_w, math(group, "DIVIDE", shrink, softness))
     realized = _store(group, realized, "signed_w", signed_w)
     factor: Any = math(group, "MULTIPLY", math(group, "MULTIPLY", output(group_in, "Margin"), _named(group, "softness")), outer)
-    factor = math(group, "ADD", factor, 1.0)
+    factor = math(group, "SUBTRACT", math(group, "ADD", factor, 1.0), shrink)
     for k in range(2, harmonics + 2):
         kt = math(group, "MULTIPLY", angle, float(k))
         term = math(group, "MULTIPLY", _named(group, f"fourier_a{k}"), math(group, "COSINE", kt))

@@ -38,6 +38,14 @@ PLATE_STAIN_INPUTS = ("Unevenness", "Unevenness Scale", "Centre Elongation", "Ri
 MASK_AOVS = ("well_id", "plaque_id")
 """Shader AOVs of the mask pass: each holds the integer id of the well / plaque seen in the pixel (0: none)."""
 
+FRAY_CELLS_AROUND = 128
+FRAY_CELL_MM = 0.3
+"""A plaque's frayed edge: noise cells around its outline and along its radius (the raster renderer's fuzz tile)."""
+
+PIXEL_FILTER_KEEPS = 0.8
+"""Standard deviation left of unit white noise on pixel-sized cells after the image pass's 1-pixel
+Blackman-Harris filter (computed numerically over random cell offsets)."""
+
 _NOISE_SD = 0.123
 """Standard deviation of Blender's 3-D Noise Texture factor (detail 0, mean 0.5), measured on a large plane."""
 
@@ -165,7 +173,10 @@ def stain_group(transmittance: bpy.types.NodeTree, pixel_mm: float, with_lysis: 
     density = math(group, "MULTIPLY", density, math(group, "MULTIPLY_ADD", band, -0.5, 1.0))
     # high-frequency drying texture
     high = _cell_noise(group, offset, max(0.06, pixel_mm), math(group, "ADD", seed, 17.0))
-    density = math(group, "MULTIPLY", density, math(group, "MAXIMUM", math(group, "MULTIPLY_ADD", math(group, "MULTIPLY", high, 2.0), inp["well_drying_detail"], 1.0), 0.0))
+    # the raster renderer samples its drying texture at pixel centres; cells a pixel wide, averaged by the pixel
+    # filter, keep only part of their contrast
+    contrast = 2.0 / (PIXEL_FILTER_KEEPS if pixel_mm >= 0.06 else 1.0)
+    density = math(group, "MULTIPLY", density, math(group, "MAXIMUM", math(group, "MULTIPLY_ADD", math(group, "MULTIPLY", high, contrast), inp["well_drying_detail"], 1.0), 0.0))
     if with_lysis:  # lysed wells keep fibrous remnants of the layer
         fibres = _unit_noise(group, offset, 0.5, math(group, "ADD", seed, 41.0))
         remnant = math(group, "MULTIPLY_ADD", fibres, 0.35, math(group, "MULTIPLY_ADD", gradient, 0.5, math(group, "MULTIPLY_ADD", high, 0.3, 0.15)))
@@ -232,21 +243,20 @@ def _stain_node(tree: bpy.types.NodeTree, group: bpy.types.NodeTree, shared: Map
     return node
 
 
-def _change_ratio(tree: bpy.types.NodeTree, transmittance: bpy.types.NodeTree, stain: StainInputs, clearing: Any, extra: Any = 0.0) -> bpy.types.NodeSocket:
+def _change_ratio(
+    tree: bpy.types.NodeTree, transmittance: bpy.types.NodeTree, shared: Mapping[str, Any], density: Any, clearing: Any, extra: Any = 0.0
+) -> bpy.types.NodeSocket:
     """What a film over the monolayer must pass so that the light sees its stain changed: the transmittance
-    of the well's nominal density with ``clearing`` removed and ``extra`` added, over that of the nominal
-    density. (The nominal density, not the local one, keeps films cheap: the monolayer's texture stays under
-    them at full contrast.)"""
-    shared = stain.sockets(tree)
-    nominal = _well_value(tree, "well_density")
-    changed = math(tree, "MULTIPLY_ADD", nominal, math(tree, "SUBTRACT", 1.0, clearing), extra)
+    of ``density`` with ``clearing`` removed and ``extra`` added, over that of ``density`` (``shared``: the
+    stain's named sockets, :meth:`StainInputs.sockets`)."""
+    changed = math(tree, "MULTIPLY_ADD", density, math(tree, "SUBTRACT", 1.0, clearing), extra)
     ratio = add(tree, "ShaderNodeMix", data_type="RGBA", blend_type="DIVIDE", clamp_result=False)
     feed(
         tree,
         ratio,
         Factor=1.0,
         A=_transmittance(tree, transmittance, changed, shared["Stain Colour"], shared["Translucency"]),
-        B=_transmittance(tree, transmittance, nominal, shared["Stain Colour"], shared["Translucency"]),
+        B=_transmittance(tree, transmittance, density, shared["Stain Colour"], shared["Translucency"]),
     )
     return output(ratio, "Result")
 
@@ -267,31 +277,55 @@ def _plastic_colour(tree: bpy.types.NodeTree, tint_rgb: tuple[float, float, floa
     return output(colour, "Vector")
 
 
-def plaque_material(transmittance: bpy.types.NodeTree, stain: StainInputs) -> bpy.types.Material:
-    """A plaque: the stain cleared by ``clearness`` with a smooth edge ``softness * radius`` wide centred on the
-    outline, and a residual of stain left inside (as the raster renderer draws it).
+def plaque_material(transmittance: bpy.types.NodeTree, stain_group: bpy.types.NodeTree, stain: StainInputs) -> bpy.types.Material:
+    """A plaque, as the raster renderer draws it: the monolayer's local density cleared by ``clearness`` with a
+    smooth edge ``softness * radius`` wide centred on the outline and frayed by radial fibres (noise that varies
+    quickly around the plaque and slowly along its radius), and a little stain left inside.
 
     The geometry's ``signed_w`` attribute is the signed distance to the outline in edge widths (negative
-    inside). Only the plaque surface nearest the camera clears (``Transparent Depth == First Plaque Depth``,
-    0: nothing transparent lies in front of the plaques), so stacked plaques clear once.
+    inside), ``center`` the plaque's centre. Only the plaque surface nearest the camera clears
+    (``Transparent Depth == First Plaque Depth``, 0: nothing transparent lies in front of the plaques), so
+    stacked plaques clear once.
     """
     material, tree, out = _new_material("platesynth.plaque")
-    edge = _smoothstep(tree, math(tree, "MULTIPLY_ADD", _attribute(tree, "signed_w"), -0.5, 0.5), 0.0, 1.0)
-    residual_noise = _cell_noise(tree, _plate_offset(tree), max(0.12, stain.pixel_mm), math(tree, "ADD", _well_value(tree, "well_texture_seed"), 71.0))
-    residual = math(tree, "MINIMUM", math(tree, "MAXIMUM", math(tree, "MULTIPLY_ADD", residual_noise, 0.25, 0.12), 0.0), 0.6)
+    shared = stain.sockets(tree)
+    offset = _plate_offset(tree)
+    from_centre = vector_math(tree, "SUBTRACT", output(add(tree, "ShaderNodeTexCoord"), "Object"), _attribute(tree, "center", "Vector"))
+    parts = feed(tree, add(tree, "ShaderNodeSeparateXYZ"), Vector=from_centre)
+    distance = math(tree, "SQRT", math(tree, "ADD", math(tree, "POWER", output(parts, "X"), 2.0), math(tree, "POWER", output(parts, "Y"), 2.0)))
+    # fibres: about 128 noise cells around the plaque, 0.3 mm along its radius (no seam: a circle in 3-D noise)
+    around = math(tree, "DIVIDE", FRAY_CELLS_AROUND / (2 * 3.141592653589793), math(tree, "MAXIMUM", distance, 1e-6))
+    fibre_xyz = feed(
+        tree,
+        add(tree, "ShaderNodeCombineXYZ"),
+        X=math(tree, "MULTIPLY", output(parts, "X"), around),
+        Y=math(tree, "MULTIPLY", output(parts, "Y"), around),
+        Z=math(tree, "DIVIDE", distance, FRAY_CELL_MM),
+    )
+    fray = _unit_noise(tree, fibre_xyz, 1.0, _well_value(tree, "well_texture_seed"))
+    t = math(tree, "MULTIPLY_ADD", _attribute(tree, "signed_w"), -1.0 / 1.5, math(tree, "MULTIPLY_ADD", fray, 0.2, 0.5))
+    edge = _smoothstep(tree, t, 0.0, 1.0)
+    # smooth blotches about 0.25 mm across, as the raster renderer's residual tile (0.1 mm cells smoothed by 1.2)
+    residual_noise = _unit_noise(tree, offset, 0.25, math(tree, "ADD", _well_value(tree, "well_texture_seed"), 71.0))
+    residual = math(tree, "MINIMUM", math(tree, "MAXIMUM", math(tree, "MULTIPLY_ADD", residual_noise, 0.03, 0.03), 0.0), 0.2)
     clearing = math(tree, "MULTIPLY", math(tree, "MULTIPLY", _attribute(tree, "clearness"), edge), math(tree, "SUBTRACT", 1.0, residual))
     path = add(tree, "ShaderNodeLightPath")
     topmost = math(tree, "COMPARE", output(path, "Transparent Depth"), _value(tree, "First Plaque Depth", 0.0), 0.5)
     clearing = math(tree, "MULTIPLY", clearing, topmost)
-    link(tree, feed(tree, add(tree, "ShaderNodeBsdfTransparent"), Color=_change_ratio(tree, transmittance, stain, clearing)), out)
+    density = output(_stain_node(tree, stain_group, shared, offset), "Density")
+    link(tree, feed(tree, add(tree, "ShaderNodeBsdfTransparent"), Color=_change_ratio(tree, transmittance, shared, density, clearing)), out)
     return material
 
 
 def marks_material(transmittance: bpy.types.NodeTree, stain: StainInputs) -> bpy.types.Material:
     """Scratches and specks on the monolayer: each mark's ``mark_clearing`` (stain scraped off) and ``mark_extra``
-    (density added) attributes change the stain of the well under it."""
+    (density added) attributes change the stain of the well under it, inside the well's floor only."""
     material, tree, out = _new_material("platesynth.marks")
-    ratio = _change_ratio(tree, transmittance, stain, _attribute(tree, "mark_clearing"), _attribute(tree, "mark_extra"))
+    # only on the monolayer: a scratch running up the wall changes nothing beyond the floor's edge
+    on_floor = math(tree, "LESS_THAN", output(vector_math(tree, "LENGTH", _plate_offset(tree)), "Value"), stain.well_radius)
+    clearing = math(tree, "MULTIPLY", _attribute(tree, "mark_clearing"), on_floor)
+    extra = math(tree, "MULTIPLY", _attribute(tree, "mark_extra"), on_floor)
+    ratio = _change_ratio(tree, transmittance, stain.sockets(tree), _well_value(tree, "well_density"), clearing, extra)
     link(tree, feed(tree, add(tree, "ShaderNodeBsdfTransparent"), Color=ratio), out)
     return material
 
@@ -369,6 +403,39 @@ def ink_material() -> bpy.types.Material:
     """Marker ink and blots on the plastic: a film multiplying the light by its ``ink`` attribute (linear RGB)."""
     material, tree, out = _new_material("platesynth.ink")
     link(tree, feed(tree, add(tree, "ShaderNodeBsdfTransparent"), Color=_attribute(tree, "ink", "Color")), out)
+    return material
+
+
+def blot_material() -> bpy.types.Material:
+    """A smudge on the plastic, as the raster renderer draws it: its opacity falls off as a Gaussian
+    ``opacity * exp(-d**2 / radius**2)`` and the light passing it is multiplied by ``1 - a * (1 - colour)``."""
+    material, tree, out = _new_material("platesynth.blot")
+    position = output(add(tree, "ShaderNodeTexCoord"), "Object")
+    flat = feed(tree, add(tree, "ShaderNodeVectorMath", operation="MULTIPLY"), Vector=position, Vector_1=(1.0, 1.0, 0.0))
+    distance = output(vector_math(tree, "DISTANCE", flat, _attribute(tree, "blot_center", "Vector")), "Value")
+    relative = math(tree, "DIVIDE", distance, _attribute(tree, "blot_radius"))
+    opacity = math(tree, "MULTIPLY", _attribute(tree, "blot_opacity"), math(tree, "EXPONENT", math(tree, "MULTIPLY", math(tree, "POWER", relative, 2.0), -1.0)))
+    tinted = add(tree, "ShaderNodeMix", data_type="RGBA", blend_type="MIX", clamp_result=False)
+    feed(tree, tinted, Factor=opacity, A=(1.0, 1.0, 1.0, 1.0), B=_attribute(tree, "blot_rgb", "Color"))
+    link(tree, feed(tree, add(tree, "ShaderNodeBsdfTransparent"), Color=output(tinted, "Result")), out)
+    return material
+
+
+def rim_material(well_radius: float) -> bpy.types.Material:
+    """The walls' bands and outlines: ink (the ``ink`` attribute), except where ``rim_hidden_inside`` is set and
+    the ray crossed the floors' plane (``z = 0``) within ``well_radius`` of the ring's ``rim_center``."""
+    material, tree, out = _new_material("platesynth.rims")
+    geometry = add(tree, "ShaderNodeNewGeometry")
+    position, incoming = output(geometry, "Position"), output(geometry, "Incoming")
+    # the point where the ray (towards the camera along ``incoming``) crossed the floors' plane
+    to_floor = math(tree, "DIVIDE", output(feed(tree, add(tree, "ShaderNodeSeparateXYZ"), Vector=position), "Z"), output(feed(tree, add(tree, "ShaderNodeSeparateXYZ"), Vector=incoming), "Z"))
+    back = feed(tree, add(tree, "ShaderNodeVectorMath", operation="SCALE"), Vector=incoming, Scale=to_floor)
+    crossing = vector_math(tree, "SUBTRACT", position, output(back, "Vector"))
+    off_centre = output(vector_math(tree, "DISTANCE", crossing, _attribute(tree, "rim_center", "Vector")), "Value")
+    through_floor = math(tree, "MULTIPLY", math(tree, "LESS_THAN", off_centre, _value(tree, "Well Radius", well_radius)), _attribute(tree, "rim_hidden_inside"))
+    ink = add(tree, "ShaderNodeMix", data_type="RGBA", blend_type="MIX", clamp_result=False)
+    feed(tree, ink, Factor=through_floor, A=_attribute(tree, "ink", "Color"), B=(1.0, 1.0, 1.0, 1.0))
+    link(tree, feed(tree, add(tree, "ShaderNodeBsdfTransparent"), Color=output(ink, "Result")), out)
     return material
 
 

@@ -1,8 +1,11 @@
 """The plate's plastic as geometry nodes: a deck with one hole per well, tapered well walls, the outer wall.
 
 Heights are in the world frame: well floors at ``z = 0`` (the plate's bottom ``Floor Thickness`` below), the
-walls' top edge and the deck at ``z = Well Depth`` with inner radius ``Well Radius + Taper`` (as the raster
-renderer draws it). The plastic under the floors is folded into the monolayer's material.
+walls' top edge at ``z = Well Depth`` with inner radius ``Well Radius + Taper``. The plastic under the floors is
+folded into the monolayer's material. The deck, the sheet that carries the plastic's tint, its labels and ribs
+around the wells, lies at ``Deck Height`` with one hole of ``Well Radius`` per well: the renderer puts it just
+behind the floors, so that each ray crosses the plastic once, as the raster renderer draws it (a deck at the
+walls' top edge would tint the floors a second time in a crescent where parallax puts it behind them).
 """
 
 from __future__ import annotations
@@ -24,6 +27,7 @@ PLATE_INPUTS = [
     ("Wall", "NodeSocketFloat", 1.3),
     ("Well Depth", "NodeSocketFloat", 17.5),
     ("Floor Thickness", "NodeSocketFloat", 1.0),
+    ("Deck Height", "NodeSocketFloat", 17.5),
     ("Segments", "NodeSocketInt", 128),
     ("Walls", "NodeSocketBool", False),
 ]
@@ -49,23 +53,23 @@ def _on_points(group: bpy.types.NodeTree, points: Any, instance: Any) -> bpy.typ
     return feed(group, add(group, "GeometryNodeRealizeInstances"), Geometry=instances)
 
 
-def plate_group(material: bpy.types.Material) -> bpy.types.NodeTree:
-    """Geometry nodes making the plate body from the well-centre points (see :data:`PLATE_INPUTS`): the deck and
-    the outer wall, or with ``Walls`` on the wells' walls."""
+def plate_group(material: bpy.types.Material, side_material: bpy.types.Material) -> bpy.types.NodeTree:
+    """Geometry nodes making the plate body from the well-centre points (see :data:`PLATE_INPUTS`): the deck
+    (``material``) and the outer wall (``side_material``), or with ``Walls`` on the wells' walls (``material``)."""
     group, group_in, group_out = new_group("platesynth.plate", PLATE_INPUTS)
     points = output(group_in, "Geometry")
     outline = _outline(group, group_in)
     depth = output(group_in, "Well Depth")
     top_radius = math(group, "ADD", output(group_in, "Well Radius"), output(group_in, "Taper"))
 
-    # the deck: the footprint with one hole per well at the walls' top edge
+    # the deck: the footprint with one hole per well floor
     hole = add(group, "GeometryNodeCurvePrimitiveCircle", mode="RADIUS")
-    feed(group, hole, Resolution=output(group_in, "Segments"), Radius=top_radius)
+    feed(group, hole, Resolution=output(group_in, "Segments"), Radius=output(group_in, "Well Radius"))
     deck_curves = add(group, "GeometryNodeJoinGeometry")
     link(group, outline, deck_curves)
     link(group, _on_points(group, points, hole), deck_curves)
     deck = feed(group, add(group, "GeometryNodeFillCurve"), Curve=deck_curves, Mode="N-gons")
-    deck = _moved(group, deck, 0.0, 0.0, depth)  # one sheet: seen through, a second face would only cost time
+    deck = _moved(group, deck, 0.0, 0.0, output(group_in, "Deck Height"))  # one sheet: seen through, a second face would only cost time
 
     # the wells' walls: open cones from the floor's radius up to the top edge's, a hair short of the floor and
     # the deck (edges shared by two surfaces can trap a ray passing exactly there: black pixels)
@@ -83,9 +87,10 @@ def plate_group(material: bpy.types.Material) -> bpy.types.NodeTree:
     side = _moved(group, side, 0.0, 0.0, side_z)
 
     body = add(group, "GeometryNodeJoinGeometry")
-    for part in (deck, side):
-        link(group, part, body)
+    link(group, feed(group, add(group, "GeometryNodeSetMaterial"), Geometry=deck, Material=material), body)
+    link(group, feed(group, add(group, "GeometryNodeSetMaterial"), Geometry=side, Material=side_material), body)
+    walls = feed(group, add(group, "GeometryNodeSetMaterial"), Geometry=walls, Material=material)
     part = feed(group, add(group, "GeometryNodeSwitch", input_type="GEOMETRY"), Switch=output(group_in, "Walls"), **{"False": body, "True": walls})
-    link(group, feed(group, add(group, "GeometryNodeSetMaterial"), Geometry=part, Material=material), group_out)
+    link(group, part, group_out)
     return group
 

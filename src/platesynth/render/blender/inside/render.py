@@ -72,6 +72,9 @@ def configure(options: Mapping[str, Any], view: Mapping[str, Any], seed: int) ->
         cycles.seed = seed % (2**31 - 1)
         cycles.max_bounces = 4
         cycles.transparent_max_bounces = 64
+        # no Russian roulette through the stacked films: it would end paths at random where many overlap (speckle)
+        cycles.min_transparent_bounces = cycles.transparent_max_bounces
+        cycles.min_light_bounces = cycles.max_bounces
         cycles.diffuse_bounces = cycles.glossy_bounces = cycles.transmission_bounces = 0
         cycles.volume_bounces = 0
         cycles.caustics_reflective = cycles.caustics_refractive = False

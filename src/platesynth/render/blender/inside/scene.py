@@ -21,6 +21,7 @@ import numpy as np
 from mathutils import Matrix
 
 from platesynth.render.blender.inside import geometry, materials, plate
+from platesynth.render._kernels import FLOOR_TRANSMITTANCE, WALL_BAND_GAIN
 from platesynth.render.raster import plate_relief, texels_per_mm
 from platesynth.scene.params import PlateGeometry
 
@@ -68,7 +69,7 @@ def build(description: Mapping[str, Any]) -> dict[str, bpy.types.Object]:
     wells = scene_data["wells"]
     well_attributes = _well_attributes(wells, int(scene_data["seed"]))
     well_points = geometry.point_cloud("platesynth.wells", _with_z(_world_xy([w["center_mm"] for w in wells]), 0.0), well_attributes)
-    monolayer = materials.monolayer_material(stain_group, stain, *plastic)
+    monolayer = materials.monolayer_material(stain_group, stain, plastic[0], FLOOR_TRANSMITTANCE)
     geometry.add_modifier(well_points, geometry.wells_group(monolayer), {"Well Radius": well_radius})
     objects["wells"] = _tag(well_points, "both")
 
@@ -81,10 +82,14 @@ def build(description: Mapping[str, Any]) -> dict[str, bpy.types.Object]:
         "Wall": plate_data["wall_mm"],
         "Well Depth": plate_data["well_depth_mm"],
         "Floor Thickness": view["floor_thickness_mm"],
+        # behind the floors' films, the rims' and the marks' (see :mod:`.plate`)
+        "Deck Height": -toward_camera * 0.45,
     }
     body_material = materials.plastic_material("platesynth.plastic", *plastic, float(look["rim_darkness"]), _relief(scene_data, view))
     body = geometry.point_cloud("platesynth.plate_body", _with_z(_world_xy([w["center_mm"] for w in wells]), 0.0), {})
-    plate_group = plate.plate_group(body_material)
+    # the deck tints the light once; the outer wall's faces only darken where they are seen edge-on
+    side_material = materials.plastic_material("platesynth.plate_side", (1.0, 1.0, 1.0), 1.0, float(look["rim_darkness"]))
+    plate_group = plate.plate_group(body_material, side_material)
     geometry.add_modifier(body, plate_group, plate_inputs)
     objects["plate_body"] = _tag(body, "both")
     # the walls hide parts of the floors from a camera above the plate: they matter for the masks; in the image
@@ -95,21 +100,26 @@ def build(description: Mapping[str, Any]) -> dict[str, bpy.types.Object]:
     geometry.add_modifier(walls, plate_group, plate_inputs | {"Walls": True})
     objects["plate_walls"] = _tag(walls, "mask")
 
-    _rims(scene_data, view, wells, plastic, objects)
+    _rims(scene_data, view, wells, objects)
 
     plaques = scene_data["plaques"]
     harmonics = max((len(p["fourier"]) for p in plaques), default=0)
     plaque_attributes = _plaque_attributes(plaques, wells, well_attributes, harmonics)
     plaque_xyz = _with_z(_world_xy([p["center_mm"] for p in plaques]), 0.0)
-    plaque_group = geometry.plaques_group(materials.plaque_material(transmittance, stain), harmonics)
+    plaque_group = geometry.plaques_group(materials.plaque_material(transmittance, stain_group, stain), harmonics)
     step = toward_camera * geometry.LAYER_STEP_MM
-    # outlines (the masks) on top, in drawing order; their fuzzy fringes under all of them
-    cores = geometry.point_cloud("platesynth.plaques", plaque_xyz, plaque_attributes)
-    geometry.add_modifier(cores, plaque_group, {"Well Radius": well_radius, "Layer Step": step, "Layer Offset": float(len(plaques))})
-    objects["plaques"] = _tag(cores, "both")
-    fringes = bpy.data.objects.new("platesynth.plaque_fringes", cores.data)
+    # the masks: the outlines, later plaques on top
+    outlines = geometry.point_cloud("platesynth.plaques", plaque_xyz, plaque_attributes)
+    geometry.add_modifier(outlines, plaque_group, {"Well Radius": well_radius, "Layer Step": step})
+    objects["plaques"] = _tag(outlines, "mask")
+    # the image: the fully cleared cores on top, the frayed edges (a ring over the outline) under all of them
+    cores = bpy.data.objects.new("platesynth.plaque_cores", outlines.data)
+    bpy.context.scene.collection.objects.link(cores)
+    geometry.add_modifier(cores, plaque_group, {"Well Radius": well_radius, "Layer Step": step, "Layer Offset": float(len(plaques)), "Core Shrink": 1.0})
+    objects["plaque_cores"] = _tag(cores, "image")
+    fringes = bpy.data.objects.new("platesynth.plaque_fringes", outlines.data)
     bpy.context.scene.collection.objects.link(fringes)
-    geometry.add_modifier(fringes, plaque_group, {"Well Radius": well_radius, "Layer Step": step, "Fringe": True, "Margin": 1.0})
+    geometry.add_modifier(fringes, plaque_group, {"Well Radius": well_radius, "Layer Step": step, "Fringe": True, "Margin": 1.0, "Core Shrink": 1.0})
     objects["plaque_fringes"] = _tag(fringes, "image")
 
     _artifacts(scene_data, view, transmittance, stain, wells, well_attributes, objects)
@@ -141,28 +151,26 @@ def _rims(
     scene_data: Mapping[str, Any],
     view: Mapping[str, Any],
     wells: Sequence[Mapping[str, Any]],
-    plastic: tuple[tuple[float, float, float], float],
     objects: dict[str, bpy.types.Object],
 ) -> None:
-    """What the raster renderer draws of the walls, as films (image pass only): the plastic around each floor
-    (where the floor's film, which carries the plate's tint, ends), darkened over the wall's thickness, and thin
-    outlines at the wall's foot (radius, radius + wall) and top edge (radius + 0.3, + wall) at their heights."""
+    """What the raster renderer draws of the walls, as films (image pass only): a slightly brighter band over
+    the wall's thickness, and thin dark outlines at the wall's foot (radius, radius + wall) and top edge
+    (radius + 0.3, + wall) at their heights. Seen from below, the top edge's outlines are hidden where the
+    ray has passed a well's floor (the raster renderer's ``behind_layer``)."""
     plate_data = scene_data["plate"]
     radius, wall, depth = (float(plate_data[k]) for k in ("well_radius_mm", "wall_mm", "well_depth_mm"))
     darkness = float(scene_data["plate_look"]["rim_darkness"])
-    tint, transmittance = np.asarray(plastic[0]), plastic[1]
+    from_below = float(view["toward_camera"]) < 0
     centres = _world_xy([w["center_mm"] for w in wells])
     line = 0.18  # mm, the raster renderer's outline width
     # just behind the floors' film, each ring at its own height: overlapping films must not coincide
-    step = -float(view["toward_camera"]) * 0.005
-    rings = [  # inner radius, outer radius, height, colour
-        # the deck (tint and transmittance once more) overlaps these where the parallax is small: half each
-        (radius, radius + wall, step, tint * np.sqrt(transmittance) * (1.0 - 0.25 * darkness)),
-        (radius + wall, radius + wall + 0.6, 2 * step, tint * np.sqrt(transmittance)),
-        (radius - line / 2, radius + line / 2, 3 * step, np.full(3, 1.0 - darkness)),
-        (radius + wall - line / 2, radius + wall + line / 2, 4 * step, np.full(3, 1.0 - 0.6 * darkness)),
-        (radius + 0.3 - line / 2, radius + 0.3 + line / 2, depth - 0.05, np.full(3, 1.0 - 0.8 * darkness)),
-        (radius + 0.3 + wall - line / 2, radius + 0.3 + wall + line / 2, depth - 0.05, np.full(3, 1.0 - 0.5 * darkness)),
+    step = -float(view["toward_camera"]) * 0.05
+    rings = [  # inner radius, outer radius, height, colour, hidden behind the floors
+        (radius, radius + wall, step, 1.0 + WALL_BAND_GAIN, False),
+        (radius - line / 2, radius + line / 2, 2 * step, 1.0 - 0.5 * darkness, False),
+        (radius + wall - line / 2, radius + wall + line / 2, 3 * step, 1.0 - darkness, False),
+        (radius + 0.3 - line / 2, radius + 0.3 + line / 2, depth - 0.05, 1.0 - 0.35 * darkness, from_below),
+        (radius + 0.3 + wall - line / 2, radius + 0.3 + wall + line / 2, depth - 0.05, 1.0 - 0.5 * darkness, from_below),
     ]
     n = len(centres)
     rims = geometry.annuli(
@@ -171,9 +179,13 @@ def _rims(
         np.repeat([r[0] for r in rings], n),
         np.repeat([r[1] for r in rings], n),
         np.repeat([r[2] for r in rings], n),
-        {"ink": np.repeat(np.array([r[3] for r in rings]), n, axis=0)},
+        {
+            "ink": np.repeat(np.array([[r[3]] * 3 for r in rings]), n, axis=0),
+            "rim_center": _with_z(np.concatenate([centres] * len(rings)), 0.0),
+            "rim_hidden_inside": np.repeat([float(r[4]) for r in rings], n),
+        },
     )
-    rims.data.materials.append(materials.ink_material())
+    rims.data.materials.append(materials.rim_material(radius))
     objects["rims"] = _tag(rims, "image")
 
 
@@ -259,15 +271,18 @@ def _artifacts(
         objects["marker"] = _tag(pen, "image")
     blots = artifacts["blots"]
     if blots:
-        stains = geometry.discs(
-            "platesynth.blots",
-            _world_xy([b["center_mm"] for b in blots]),
-            [b["radius_mm"] for b in blots],
-            away * 0.65,
-            {"ink": np.array(view["blot_linear_rgb"], dtype=np.float64).reshape(-1, 3)},
-        )
-        stains.data.materials.append(ink)
-        objects["blots"] = _tag(stains, "image")
+        centres = _world_xy([b["center_mm"] for b in blots])
+        radii = np.array([b["radius_mm"] for b in blots], dtype=np.float64)
+        attributes = {
+            "blot_center": _with_z(centres, 0.0),
+            "blot_radius": radii,
+            "blot_rgb": np.array([b["color_rgb"] for b in blots], dtype=np.float64).reshape(-1, 3),
+            "blot_opacity": np.array([b["opacity"] for b in blots], dtype=np.float64),
+        }
+        # the raster renderer's Gaussian smudge reaches twice the blot's radius
+        smudges = geometry.discs("platesynth.blots", centres, 2.0 * radii, away * 0.65, attributes)
+        smudges.data.materials.append(materials.blot_material())
+        objects["blots"] = _tag(smudges, "image")
 
 
 def _on_support(view: Mapping[str, Any], image_xy: np.ndarray, depth: float) -> np.ndarray:
