@@ -10,6 +10,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from scipy import ndimage
 from typer.testing import CliRunner
 
 from platesynth.errors import ParameterError
@@ -239,3 +240,18 @@ def test_export_writes_a_blend_file_and_the_cli_command(pool, tmp_path):
     assert (tmp_path / "again.blend").stat().st_size > 10_000
     refused = runner.invoke(app, ["scene", "export", "--out", str(tmp_path / "plate.png")])
     assert refused.exit_code == 1 and "must end in .blend" in refused.output
+
+
+@needs_bpy
+def test_the_image_matches_the_raster_renderers_light_on_floors_and_plastic(rendered):
+    """The same light model: floors (away from plaques) and the plastic between the wells come out as bright as
+    in the raster renderer, within a few levels; no speckle (paths ended at random) darkens the plastic."""
+    _, blender, raster = rendered
+    floors = ndimage.binary_erosion(raster.wells > 0, iterations=3) & ~ndimage.binary_dilation(raster.plaques > 0, iterations=3)
+    plastic = ~ndimage.binary_dilation(raster.wells > 0, iterations=4)
+    plastic[:8], plastic[-8:], plastic[:, :8], plastic[:, -8:] = False, False, False, False
+    for region in (floors, plastic):
+        difference = blender.image[region].astype(np.float64).mean(axis=0) - raster.image[region].mean(axis=0)
+        assert np.abs(difference).max() < 6.0, difference
+    luminance = blender.image.astype(np.float64).mean(axis=2)[plastic]
+    assert np.percentile(luminance, 1) > 0.75 * np.median(luminance)

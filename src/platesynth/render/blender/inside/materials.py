@@ -14,6 +14,7 @@ The mask pass overrides every material with :func:`mask_material`.
 from __future__ import annotations
 
 from collections.abc import Mapping
+from math import tau
 from typing import Any
 
 import bpy
@@ -294,7 +295,7 @@ def plaque_material(transmittance: bpy.types.NodeTree, stain_group: bpy.types.No
     parts = feed(tree, add(tree, "ShaderNodeSeparateXYZ"), Vector=from_centre)
     distance = math(tree, "SQRT", math(tree, "ADD", math(tree, "POWER", output(parts, "X"), 2.0), math(tree, "POWER", output(parts, "Y"), 2.0)))
     # fibres: about 128 noise cells around the plaque, 0.3 mm along its radius (no seam: a circle in 3-D noise)
-    around = math(tree, "DIVIDE", FRAY_CELLS_AROUND / (2 * 3.141592653589793), math(tree, "MAXIMUM", distance, 1e-6))
+    around = math(tree, "DIVIDE", FRAY_CELLS_AROUND / tau, math(tree, "MAXIMUM", distance, 1e-6))
     fibre_xyz = feed(
         tree,
         add(tree, "ShaderNodeCombineXYZ"),
