@@ -31,6 +31,8 @@ Threads = Annotated[
     typer.Option("--threads", help="CPU threads for torch (0: torch's default; on a busy machine 1 is often fastest)."),
 ]
 
+Device = Annotated[str, typer.Option("--device", help="auto (CUDA if available), cpu or cuda.")]
+
 WellProb = Annotated[float | None, typer.Option("--well-prob", help="Override the wells' probability threshold.")]
 WellNms = Annotated[float | None, typer.Option("--well-nms", help="Override the wells' NMS threshold.")]
 PlaqueProb = Annotated[float | None, typer.Option("--plaque-prob", help="Override the plaques' probability threshold.")]
@@ -108,7 +110,7 @@ def train_command(
     model_config: Annotated[
         Path | None, typer.Option("--model-config", help="JSON ModelConfig (architecture, working size, grids).")
     ] = None,
-    device: Annotated[str, typer.Option("--device", help="auto (CUDA if available), cpu or cuda.")] = "auto",
+    device: Device = "auto",
     threads: Threads = 0,
     workers: Annotated[int, typer.Option("--workers", help="Data-loading processes.")] = 0,
     overwrite: Annotated[bool, typer.Option("--overwrite", help="Replace a different training found in --out.")] = False,
@@ -213,7 +215,7 @@ def predict_command(
     well_nms: WellNms = None,
     plaque_prob: PlaqueProb = None,
     plaque_nms: PlaqueNms = None,
-    device: Annotated[str, typer.Option("--device", help="auto, cpu or cuda.")] = "auto",
+    device: Device = "auto",
     threads: Threads = 0,
 ) -> None:
     """Predict well and plaque instance masks and plaques per well (counts.csv) for plate images."""
@@ -256,7 +258,7 @@ def evaluate_masks_command(
     well_nms: WellNms = None,
     plaque_prob: PlaqueProb = None,
     plaque_nms: PlaqueNms = None,
-    device: Annotated[str, typer.Option("--device", help="auto, cpu or cuda.")] = "auto",
+    device: Device = "auto",
     threads: Threads = 0,
     as_json: Json = False,
 ) -> None:
@@ -289,7 +291,7 @@ def evaluate_counts_command(
     well_nms: WellNms = None,
     plaque_prob: PlaqueProb = None,
     plaque_nms: PlaqueNms = None,
-    device: Annotated[str, typer.Option("--device", help="auto, cpu or cuda.")] = "auto",
+    device: Device = "auto",
     threads: Threads = 0,
     as_json: Json = False,
 ) -> None:
