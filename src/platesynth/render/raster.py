@@ -4,7 +4,8 @@ Every pixel centre is mapped back to plate coordinates (mm) through the camera's
 evaluated in plate space, so the masks are exact by construction (a pixel belongs to a well or a plaque when
 its centre lies inside it) and the image is anti-aliased from the same signed distances. Light is composed in
 linear RGB (light box or desk, plastic, Beer-Lambert absorption by the stained monolayer), then blurred,
-gamma-encoded and post-processed. Noise comes from coarse grids and small periodic tiles sampled in plate space;
+gamma-encoded and post-processed. Noise comes from the scene's coarse grids and small periodic tiles
+(:mod:`platesynth.render.textures`, shared with the Blender backend) sampled in plate space;
 per-object work (plaques, scratches, specks) runs in numba kernels inside each object's bounding box, and the
 per-pixel shading is one fused, row-parallel numba kernel (:func:`platesynth.render._kernels.shade`).
 """
@@ -17,12 +18,12 @@ from functools import lru_cache
 
 import numpy as np
 from PIL import Image, ImageDraw, ImageFont
-from scipy import ndimage
 
 from platesynth.errors import ParameterError
 from platesynth.render import _kernels as kernels
 from platesynth.render import postprocess
 from platesynth.render.result import RenderResult, WellInfo, check_size
+from platesynth.render.textures import FIBRE_CELL_MM, FINE_CELL_MM, FUZZ_CELL_MM, RESIDUAL_CELL_MM, noise_grid, plate_grid_index, scene_rng, scene_textures
 from platesynth.scene.params import PlateGeometry, Scene, Well
 from platesynth.scene.sample import color_temperature_rgb, stain_rgb
 
@@ -93,13 +94,6 @@ def srgb_to_linear(rgb: np.ndarray) -> np.ndarray:
     """sRGB-encoded values (0..1) to linear light."""
     rgb = np.asarray(rgb, dtype=np.float64)
     return np.where(rgb <= 0.04045, rgb / 12.92, ((rgb + 0.055) / 1.055) ** 2.4)
-
-
-def noise_grid(rng: np.random.Generator, shape: tuple[int, int], smooth: float, periodic: bool = False) -> np.ndarray:
-    """Zero-mean, unit-sd Gaussian-smoothed noise of ``shape`` (float32); ``periodic`` wraps at the edges."""
-    grid = rng.standard_normal(shape).astype(np.float32)
-    grid = ndimage.gaussian_filter(grid, smooth, mode="wrap" if periodic else "nearest")
-    return ((grid - grid.mean()) / (grid.std() + 1e-6)).astype(np.float32)
 
 
 @lru_cache(maxsize=1)
@@ -196,10 +190,9 @@ def _wells_by_grid(scene: Scene) -> list[Well]:
     plate = scene.plate
     grid: list[Well | None] = [None] * (plate.rows * plate.cols)
     for well in scene.wells:
-        col = round((well.center_mm[0] - plate.a1_x_mm) / plate.pitch_mm)
-        row = round((well.center_mm[1] - plate.a1_y_mm) / plate.pitch_mm)
-        if 0 <= row < plate.rows and 0 <= col < plate.cols:
-            grid[row * plate.cols + col] = well
+        index = plate_grid_index(plate, well.center_mm)
+        if index >= 0:
+            grid[index] = well
     if any(w is None for w in grid) or len(scene.wells) != len(grid):
         raise ParameterError(f"scene.wells must hold one well per position of the {plate.format}-well grid")
     return grid  # type: ignore[return-value]
@@ -224,10 +217,7 @@ def render_raster(scene: Scene, size: tuple[int, int] = (1024, 768)) -> RenderRe
     hinv = view.px_to_plate
     pixel_mm = 1.0 / view.px_per_mm
     plate, look, stain, bg, light = scene.plate, scene.plate_look, scene.stain, scene.background, scene.lighting
-    seeds = np.random.SeedSequence(scene.seed).spawn(8)
-
-    def rng(i: int) -> np.random.Generator:
-        return np.random.default_rng(seeds[i])
+    textures = scene_textures(scene)
 
     wells = _wells_by_grid(scene)
     # the top edge of the wells' walls, seen with parallax about the camera's axis
@@ -237,35 +227,25 @@ def render_raster(scene: Scene, size: tuple[int, int] = (1024, 768)) -> RenderRe
     centres = np.array([w.center_mm for w in wells], dtype=np.float64)
     top_centres = principal + (centres - principal) * parallax
     top_radius = (plate.well_radius_mm + 0.3) * parallax
-    noise_offsets = rng(0).uniform(0.0, 100.0, (len(wells), 2))
     well_rows = np.zeros((len(wells), kernels.N_WELL_PARAMS), dtype=np.float64)
     for i, w in enumerate(wells):
         angle = math.radians(w.stain.centre_angle_deg)
         well_rows[i] = (
             w.id, *w.center_mm, *top_centres[i], w.stain.density, w.stain.centre_gradient, math.cos(angle),
             math.sin(angle), *w.stain.centre_offset_mm, w.stain.drying_detail, float(w.lysed), float(w.emptied),
-            *noise_offsets[i],
+            *textures.well_offsets[i],
         )
 
-    fine_cell, residual_cell = 0.05, 0.1
-    fine_tile = noise_grid(rng(4), (256, 256), 0.8, periodic=True)
-    residual_tile = noise_grid(rng(5), (128, 128), 1.2, periodic=True)
     clear = np.zeros((height, width), dtype=np.float32)
     plaque_ids = np.zeros((height, width), dtype=np.uint16)
-    _draw_plaques(scene, view, wells, top_centres, top_radius, fine_tile, 0.15, clear, plaque_ids)
+    _draw_plaques(scene, view, wells, top_centres, top_radius, textures.fine_tile, FUZZ_CELL_MM, clear, plaque_ids)
     scratched = np.zeros((height, width), dtype=np.float32)
     specks = np.zeros((height, width), dtype=np.float32)
     _draw_artifacts(scene, view, scratched, specks)
 
-    low_cell = stain.unevenness_scale_mm / 2.0
-    low_grid = noise_grid(rng(1), (int(plate.width_mm / low_cell) + 3, int(plate.length_mm / low_cell) + 3), 1.5)
-    fibre_cell = 0.25
-    if any(w.lysed for w in wells):
-        fibre_grid = noise_grid(rng(2), (int(plate.width_mm / fibre_cell) + 3, int(plate.length_mm / fibre_cell) + 3), 2.0)
-    else:
-        fibre_grid = np.zeros((2, 2), dtype=np.float32)
+    fibre_grid = textures.fibre_grid if textures.fibre_grid is not None else np.zeros((2, 2), dtype=np.float32)
     desk_cell_px = 8.0 * view.px_per_mm
-    desk_grid = noise_grid(rng(3), (int(height / desk_cell_px) + 3, int(width / desk_cell_px) + 3), 1.0)
+    desk_grid = noise_grid(scene_rng(scene.seed, "desk"), (int(height / desk_cell_px) + 3, int(width / desk_cell_px) + 3), 1.0)
     k = texels_per_mm(view.px_per_mm)
     relief = plate_relief(plate, k)
     ink = marker_ink(scene, k)
@@ -294,14 +274,14 @@ def render_raster(scene: Scene, size: tuple[int, int] = (1024, 768)) -> RenderRe
     wells_mask = np.zeros((height, width), dtype=np.uint8)
     kernels.shade(
         hinv, scalars, np.asarray(srgb_to_linear(bg.color_rgb)), np.asarray(bg.panel_mm, dtype=np.float64),
-        blots, well_rows, relief, ink, k, low_grid, low_cell, fibre_grid, fibre_cell, desk_grid, desk_cell_px,
-        fine_tile, fine_cell, residual_tile, residual_cell, clear, scratched, specks, absorbance, gains, _gamma_lut(),
+        blots, well_rows, relief, ink, k, textures.low_grid, textures.low_cell_mm, fibre_grid, FIBRE_CELL_MM, desk_grid,
+        desk_cell_px, textures.fine_tile, FINE_CELL_MM, textures.residual_tile, RESIDUAL_CELL_MM, clear, scratched, specks, absorbance, gains, _gamma_lut(),
         image, wells_mask,
     )
     sigma = scene.camera.defocus_px * width / REFERENCE_WIDTH
     if sigma > 0.05:
         image = postprocess.gaussian_blur(image, sigma)
-    image = postprocess.apply_post(image, scene.post, rng(6), width / REFERENCE_WIDTH)
+    image = postprocess.apply_post(image, scene.post, scene_rng(scene.seed, "post"), width / REFERENCE_WIDTH)
     image_u8 = postprocess.to_uint8(image)
     if scene.post.jpeg.enabled:
         image_u8 = postprocess.jpeg_roundtrip(image_u8, scene.post.jpeg.strength)

@@ -53,7 +53,7 @@ class _Chain:
         self.image = image
 
     def mix(self, blend: str, b: Any, factor: Any = 1.0, a: Any = None, name: str | None = None) -> bpy.types.NodeSocket:
-        node = add(self.tree, "ShaderNodeMix", name=name, data_type="RGBA", blend_type=blend, clamp_result=False)
+        node = add(self.tree, "ShaderNodeMix", name=name, data_type="RGBA", blend_type=blend, clamp_result=False, clamp_factor=False)
         feed(self.tree, node, Factor=factor, A=self.image if a is None else a, B=b)
         return output(node, "Result")
 

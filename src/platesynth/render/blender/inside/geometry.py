@@ -157,7 +157,8 @@ def plaques_group(material: bpy.types.Material, harmonics: int) -> bpy.types.Nod
     pass's fully cleared cores, above the rings of every frayed edge, so that overlapping plaques clear as their
     union does where one plaque's core meets another's edge.
     Points beyond the well's radius are pulled back onto its circle. Discs are stacked ``Layer Step`` apart
-    (negative where the camera looks from below), starting ``Layer Offset`` steps above ``Floor Height``.
+    (negative where the camera looks from below), starting ``Layer Offset`` steps above ``Floor Height``, in the
+    order of ``layer``, or with ``Layer By Clearness`` in that of the points' ``clearness_rank``.
     """
     group, group_in, group_out = new_group(
         "platesynth.plaques",
@@ -170,6 +171,7 @@ def plaques_group(material: bpy.types.Material, harmonics: int) -> bpy.types.Nod
             ("Fringe", "NodeSocketBool", False),
             ("Margin", "NodeSocketFloat", 0.0),
             ("Core Shrink", "NodeSocketFloat", 0.0),
+            ("Layer By Clearness", "NodeSocketBool", False),
             ("Radius Scale", "NodeSocketFloat", 1.0),
             ("Irregularity Scale", "NodeSocketFloat", 1.0),
         ],
@@ -226,7 +228,9 @@ def plaques_group(material: bpy.types.Material, harmonics: int) -> bpy.types.Nod
     clipped = add(group, "ShaderNodeVectorMath", operation="SCALE")
     feed(group, clipped, Vector=from_well, Scale=shrink)
     clipped_xyz = _xyz(group, vector_math(group, "ADD", well_center, clipped))
-    layer = math(group, "ADD", math(group, "ADD", _named(group, "layer"), output(group_in, "Layer Offset")), 1.0)
+    order = add(group, "GeometryNodeSwitch", input_type="FLOAT")
+    feed(group, order, Switch=output(group_in, "Layer By Clearness"), **{"False": _named(group, "layer"), "True": _named(group, "clearness_rank")})
+    layer = math(group, "ADD", math(group, "ADD", output(order, "Output"), output(group_in, "Layer Offset")), 1.0)
     height = math(group, "MULTIPLY_ADD", layer, output(group_in, "Layer Step"), output(group_in, "Floor Height"))
     final = feed(group, add(group, "ShaderNodeCombineXYZ"), X=output(clipped_xyz, "X"), Y=output(clipped_xyz, "Y"), Z=height)
     placed = feed(group, add(group, "GeometryNodeSetPosition"), Geometry=realized, Position=final)

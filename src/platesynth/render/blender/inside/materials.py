@@ -4,7 +4,9 @@ The monolayer is a thin absorbing film: a Transparent BSDF whose colour is its t
 ``T = translucency + (1 - translucency) * stain_rgb ** D`` (Beer-Lambert with the stain's nominal colour as the
 transmittance at relative density ``D = 1``). ``D`` is built in the shared group ``platesynth.stain`` from the
 well's attributes: low-frequency unevenness, an elongated dark centre, high-frequency drying detail and a paler
-band along the rim (``platesynth.transmittance`` turns a density into a colour). A plaque, scratch or speck is a
+band along the rim (``platesynth.transmittance`` turns a density into a colour). Its noise is the scene's own
+(:mod:`platesynth.render.textures`, the raster renderer's arrays) looked up as image textures at the same
+plate positions, so both renderers draw the same stain. A plaque, scratch or speck is a
 film just in front of the monolayer whose Transparent colour is the ratio of the changed transmittance to the
 intact one, so light passing film and monolayer sees the stain that is left. The plastic multiplies by its tint
 and transmittance. Per-element values come from point attributes; plate-wide values are named Value/RGB nodes.
@@ -20,32 +22,27 @@ from typing import Any
 import bpy
 
 from platesynth.render.blender.inside.nodes import add, feed, link, math, output, vector_math
+from platesynth.render.textures import FIBRE_CELL_MM, FINE_CELL_MM, FUZZ_CELL_MM, RESIDUAL_CELL_MM
 
 WELL_VECTORS = {
     "well_stain": ("well_density", "well_centre_gradient", "well_drying_detail"),
-    "well_state": ("well_emptied", "well_lysed", "well_texture_seed"),
+    "well_state": ("well_emptied", "well_lysed", None),
     "well_centre": ("well_centre_offset_x", "well_centre_offset_y", "well_centre_angle_deg"),
+    "well_noise": ("well_noise_x", "well_noise_y", None),
 }
 """A well's monolayer, packed three values to a vector point attribute (each attribute the shader reads costs
-time at every sample): the vectors' names and their components' names (the stain group's inputs). Wells and
-their plaques and marks carry them, plus ``well_center`` (world mm). Prefixed names: Cycles reserves some plain
+time at every sample): the vectors' names and their components' names (the stain group's inputs; ``None``: an
+unused component). ``well_noise`` is the well's shift into the periodic noise tiles (mm). Wells and their
+plaques and marks carry them, plus ``well_center`` (world mm). Prefixed names: Cycles reserves some plain
 ones (``density`` is the volume density)."""
 
-WELL_ATTRIBUTES = tuple(name for components in WELL_VECTORS.values() for name in components)
+WELL_ATTRIBUTES = tuple(name for components in WELL_VECTORS.values() for name in components if name)
 
 PLATE_STAIN_INPUTS = ("Unevenness", "Unevenness Scale", "Centre Elongation", "Rim Clearing", "Translucency")
 """Plate-wide stain parameters: inputs of the stain group, fed by named Value nodes in each material."""
 
 MASK_AOVS = ("well_id", "plaque_id")
 """Shader AOVs of the mask pass: each holds the integer id of the well / plaque seen in the pixel (0: none)."""
-
-FRAY_CELLS_AROUND = 128
-FRAY_CELL_MM = 0.3
-"""A plaque's frayed edge: noise cells around its outline and along its radius (the raster renderer's fuzz tile)."""
-
-PIXEL_FILTER_KEEPS = 0.8
-"""Standard deviation left of unit white noise on pixel-sized cells after the image pass's 1-pixel
-Blackman-Harris filter (computed numerically over random cell offsets)."""
 
 _NOISE_SD = 0.123
 """Standard deviation of Blender's 3-D Noise Texture factor (detail 0, mean 0.5), measured on a large plane."""
@@ -56,6 +53,44 @@ def _new_material(name: str) -> tuple[bpy.types.Material, bpy.types.NodeTree, bp
     tree = material.node_tree
     tree.nodes.clear()
     return material, tree, add(tree, "ShaderNodeOutputMaterial")
+
+
+class NoiseImages:
+    """The scene's noise textures (:class:`platesynth.render.textures.SceneTextures`) as Blender images (each
+    array's row 0 at the image's bottom), with the cell of the unevenness grid."""
+
+    def __init__(self, low_grid: bpy.types.Image, low_cell_mm: float, fibre_grid: bpy.types.Image | None, fine_tile: bpy.types.Image, residual_tile: bpy.types.Image) -> None:
+        self.low_grid = low_grid
+        self.low_cell_mm = low_cell_mm
+        self.fibre_grid = fibre_grid
+        self.fine_tile = fine_tile
+        self.residual_tile = residual_tile
+
+
+def _lookup(tree: bpy.types.NodeTree, image: bpy.types.Image, column: Any, row: Any, periodic: bool) -> bpy.types.NodeSocket:
+    """Bilinear value of a noise array at a fractional ``column`` and ``row``, as the raster renderer samples it:
+    periodic tiles wrap, grids are clamped at their border."""
+    width, height = image.size
+    uv = feed(
+        tree,
+        add(tree, "ShaderNodeCombineXYZ"),
+        X=math(tree, "MULTIPLY_ADD", column, 1.0 / width, 0.5 / width),
+        Y=math(tree, "MULTIPLY_ADD", row, 1.0 / height, 0.5 / height),
+    )
+    texture = add(tree, "ShaderNodeTexImage", interpolation="Linear", extension="REPEAT" if periodic else "EXTEND")
+    texture.image = image
+    link(tree, uv, texture)
+    return output(feed(tree, add(tree, "ShaderNodeSeparateColor"), Color=output(texture, "Color")), "Red")
+
+
+def _plate_position(tree: bpy.types.NodeTree) -> tuple[bpy.types.NodeSocket, bpy.types.NodeSocket]:
+    """The shading point's plate coordinates ``(u, v)`` in mm (x right, y down; the world's y is up)."""
+    parts = feed(tree, add(tree, "ShaderNodeSeparateXYZ"), Vector=output(add(tree, "ShaderNodeTexCoord"), "Object"))
+    return output(parts, "X"), math(tree, "MULTIPLY", output(parts, "Y"), -1.0)
+
+
+def _in_cells(tree: bpy.types.NodeTree, position_mm: Any, shift_mm: Any, cell_mm: Any) -> bpy.types.NodeSocket:
+    return math(tree, "DIVIDE", math(tree, "ADD", position_mm, shift_mm), cell_mm)
 
 
 def _attribute(tree: bpy.types.NodeTree, name: str, socket: str = "Fac") -> bpy.types.NodeSocket:
@@ -100,14 +135,6 @@ def _unit_noise(tree: bpy.types.NodeTree, vector: Any, cell_mm: Any, seed: Any) 
     return output(math(tree, "DIVIDE", math(tree, "SUBTRACT", output(node, "Factor"), 0.5), _NOISE_SD), "Value")
 
 
-def _cell_noise(tree: bpy.types.NodeTree, vector: Any, cell_mm: float, seed: Any) -> bpy.types.NodeSocket:
-    """Independent values with mean 0 and standard deviation 1 on ``cell_mm`` squares: the raster renderer's
-    finest textures are a pixel or less across, so smoothness does not show and white noise is much cheaper."""
-    cells = output(vector_math(tree, "FLOOR", vector_math(tree, "DIVIDE", vector, (cell_mm, cell_mm, 1.0))), "Vector")
-    node = feed(tree, add(tree, "ShaderNodeTexWhiteNoise", noise_dimensions="3D"), Vector=_seeded(tree, cells, seed))
-    return output(math(tree, "MULTIPLY", math(tree, "SUBTRACT", output(node, "Value"), 0.5), 12.0**0.5), "Value")
-
-
 def _smoothstep(tree: bpy.types.NodeTree, value: Any, low: Any, high: Any) -> bpy.types.NodeSocket:
     node = add(tree, "ShaderNodeMapRange", interpolation_type="SMOOTHSTEP")
     return output(feed(tree, node, Value=value, From_Min=low, From_Max=high, To_Min=0.0, To_Max=1.0), "Result")
@@ -132,14 +159,13 @@ def transmittance_group() -> bpy.types.NodeTree:
     return group
 
 
-def stain_group(transmittance: bpy.types.NodeTree, pixel_mm: float, with_lysis: bool = True) -> bpy.types.NodeTree:
+def stain_group(transmittance: bpy.types.NodeTree, noise: NoiseImages) -> bpy.types.NodeTree:
     """Shader group ``platesynth.stain``: the monolayer's density and transmittance at a point of a well.
 
-    The density follows the raster renderer's model: the well's density with low-frequency unevenness, an
-    elongated darker centre, a thinner band along the rim and high-frequency drying texture; lysed wells keep
-    fibrous remnants, emptied wells nothing. The drying texture's cells are 0.06 mm but at least a pixel
-    (``pixel_mm``), as in the raster renderer. ``with_lysis=False`` leaves out the lysed wells' remnant texture
-    (a scene without lysed wells need not pay for it).
+    The density follows the raster renderer's model with the scene's noise textures: the well's density with
+    low-frequency unevenness, an elongated darker centre, a thinner band along the rim and high-frequency drying
+    texture; lysed wells keep a cloud and strands of the layer, emptied wells nothing. Without a fibre grid
+    (no lysed well in the scene) the lysed wells' remnants are left out.
     """
     group = bpy.data.node_groups.new("platesynth.stain", "ShaderNodeTree")
     sockets = [("Offset", "NodeSocketVector"), ("Well Radius", "NodeSocketFloat"), ("Stain Colour", "NodeSocketColor")]
@@ -151,8 +177,10 @@ def stain_group(transmittance: bpy.types.NodeTree, pixel_mm: float, with_lysis: 
     g_in, g_out = add(group, "NodeGroupInput"), add(group, "NodeGroupOutput")
     inp = {name: output(g_in, name) for name, _ in sockets}
 
-    offset, radius, seed = inp["Offset"], inp["Well Radius"], inp["well_texture_seed"]
-    low = _unit_noise(group, offset, inp["Unevenness Scale"], seed)
+    offset, radius = inp["Offset"], inp["Well Radius"]
+    u, v = _plate_position(group)
+    low_cell = math(group, "MULTIPLY", math(group, "MAXIMUM", inp["Unevenness Scale"], 1e-3), 0.5)
+    low = _lookup(group, noise.low_grid, _in_cells(group, u, 0.0, low_cell), _in_cells(group, v, 0.0, low_cell), periodic=False)
     density = math(group, "MULTIPLY", inp["well_density"], math(group, "MULTIPLY_ADD", low, inp["Unevenness"], 1.0))
     # the elongated darker centre: a Gaussian in the rotated, stretched frame around the offset centre
     centre_offset = feed(group, add(group, "ShaderNodeCombineXYZ"), X=inp["well_centre_offset_x"], Y=inp["well_centre_offset_y"])
@@ -172,16 +200,20 @@ def stain_group(transmittance: bpy.types.NodeTree, pixel_mm: float, with_lysis: 
     to_rim = math(group, "MAXIMUM", math(group, "SUBTRACT", radius, output(vector_math(group, "LENGTH", offset), "Value")), 0.0)
     band = math(group, "EXPONENT", math(group, "DIVIDE", to_rim, math(group, "MULTIPLY", math(group, "MAXIMUM", inp["Rim Clearing"], 1e-4), -1.0)))
     density = math(group, "MULTIPLY", density, math(group, "MULTIPLY_ADD", band, -0.5, 1.0))
-    # high-frequency drying texture
-    high = _cell_noise(group, offset, max(0.06, pixel_mm), math(group, "ADD", seed, 17.0))
-    # the raster renderer samples its drying texture at pixel centres; cells a pixel wide, averaged by the pixel
-    # filter, keep only part of their contrast
-    contrast = 2.0 / (PIXEL_FILTER_KEEPS if pixel_mm >= 0.06 else 1.0)
-    density = math(group, "MULTIPLY", density, math(group, "MAXIMUM", math(group, "MULTIPLY_ADD", math(group, "MULTIPLY", high, contrast), inp["well_drying_detail"], 1.0), 0.0))
-    if with_lysis:  # lysed wells keep fibrous remnants of the layer
-        fibres = _unit_noise(group, offset, 0.5, math(group, "ADD", seed, 41.0))
-        remnant = math(group, "MULTIPLY_ADD", fibres, 0.35, math(group, "MULTIPLY_ADD", gradient, 0.5, math(group, "MULTIPLY_ADD", high, 0.3, 0.15)))
-        remnant = math(group, "MULTIPLY", math(group, "MINIMUM", math(group, "MAXIMUM", remnant, 0.0), 1.0), 0.45)
+    # high-frequency drying texture: the fine tile, shifted by the well's offset
+    fine_column = _in_cells(group, u, inp["well_noise_x"], FINE_CELL_MM)
+    fine = _lookup(group, noise.fine_tile, fine_column, _in_cells(group, v, inp["well_noise_y"], FINE_CELL_MM), periodic=True)
+    density = math(group, "MULTIPLY", density, math(group, "MAXIMUM", math(group, "MULTIPLY_ADD", math(group, "MULTIPLY", fine, 2.0), inp["well_drying_detail"], 1.0), 0.0))
+    if noise.fibre_grid is not None:  # what is left of a lysed layer: a cloud around the centre and a network of strands
+        fibre = _lookup(group, noise.fibre_grid, _in_cells(group, u, 0.0, FIBRE_CELL_MM), _in_cells(group, v, 0.0, FIBRE_CELL_MM), periodic=False)
+        strands = math(group, "POWER", math(group, "SUBTRACT", 1.0, math(group, "MINIMUM", math(group, "ABSOLUTE", fibre), 1.0)), 2.0)
+        strands = math(group, "MULTIPLY", strands, math(group, "MULTIPLY_ADD", fine, 0.4, 0.6))
+        cloud_noise = _lookup(group, noise.low_grid, math(group, "ADD", _in_cells(group, u, 0.0, low_cell), 17.0), _in_cells(group, v, 0.0, low_cell), periodic=False)
+        cloud = math(group, "MULTIPLY_ADD", gradient, 0.55, math(group, "MULTIPLY", cloud_noise, 0.25))
+        remnant = math(group, "MULTIPLY_ADD", cloud, math(group, "MULTIPLY_ADD", strands, 0.6, 0.4), math(group, "MULTIPLY_ADD", strands, 0.15, 0.04))
+        remnant = math(group, "MINIMUM", math(group, "MAXIMUM", remnant, 0.0), 1.0)
+        near_rim = math(group, "MULTIPLY_ADD", math(group, "EXPONENT", math(group, "DIVIDE", to_rim, -1.5)), -0.7, 1.0)
+        remnant = math(group, "MULTIPLY", math(group, "MULTIPLY", remnant, 0.6), near_rim)
         keep = math(group, "MULTIPLY_ADD", inp["well_lysed"], math(group, "SUBTRACT", remnant, 1.0), 1.0)
         density = math(group, "MULTIPLY", density, keep)
     density = math(group, "MAXIMUM", math(group, "MULTIPLY", density, math(group, "SUBTRACT", 1.0, inp["well_emptied"])), 0.0)
@@ -200,10 +232,9 @@ def _transmittance(tree: bpy.types.NodeTree, group: bpy.types.NodeTree, density:
 class StainInputs:
     """The plate-wide stain values every stain-using material exposes as named nodes."""
 
-    def __init__(self, stain_linear_rgb: tuple[float, float, float], well_radius: float, plate_stain: Mapping[str, float], pixel_mm: float) -> None:
+    def __init__(self, stain_linear_rgb: tuple[float, float, float], well_radius: float, plate_stain: Mapping[str, float]) -> None:
         self.stain_linear_rgb = stain_linear_rgb
         self.well_radius = well_radius
-        self.pixel_mm = pixel_mm  # the size of a pixel on the plate: the finest textures are no smaller
         self.values = {
             "Unevenness": float(plate_stain["unevenness"]),
             "Unevenness Scale": float(plate_stain["unevenness_scale_mm"]),
@@ -234,7 +265,7 @@ def _stain_node(tree: bpy.types.NodeTree, group: bpy.types.NodeTree, shared: Map
     inputs: dict[str, Any] = {key: value for key, value in shared.items() if key in node.inputs} | {"Offset": offset}
     for vector, components in WELL_VECTORS.items():
         parts = feed(tree, add(tree, "ShaderNodeSeparateXYZ"), Vector=_attribute(tree, vector, "Vector"))
-        inputs |= {name: output(parts, axis) for name, axis in zip(components, "XYZ")}
+        inputs |= {name: output(parts, axis) for name, axis in zip(components, "XYZ") if name}
     for key, value in inputs.items():
         target = node.inputs[key]
         if isinstance(value, (bpy.types.Node, bpy.types.NodeSocket)):
@@ -278,36 +309,38 @@ def _plastic_colour(tree: bpy.types.NodeTree, tint_rgb: tuple[float, float, floa
     return output(colour, "Vector")
 
 
-def plaque_material(transmittance: bpy.types.NodeTree, stain_group: bpy.types.NodeTree, stain: StainInputs) -> bpy.types.Material:
+def plaque_material(transmittance: bpy.types.NodeTree, stain_group: bpy.types.NodeTree, stain: StainInputs, noise: NoiseImages) -> bpy.types.Material:
     """A plaque, as the raster renderer draws it: the monolayer's local density cleared by ``clearness`` with a
-    smooth edge ``softness * radius`` wide centred on the outline and frayed by radial fibres (noise that varies
-    quickly around the plaque and slowly along its radius), and a little stain left inside.
+    smooth edge ``softness * radius`` wide centred on the outline and frayed by radial fibres (the fine tile read
+    with its 256 columns around the plaque and :data:`~platesynth.render.textures.FUZZ_CELL_MM` cells along its
+    radius), and a little stain left inside (the residual tile).
 
     The geometry's ``signed_w`` attribute is the signed distance to the outline in edge widths (negative
-    inside), ``center`` the plaque's centre. Only the plaque surface nearest the camera clears
-    (``Transparent Depth == First Plaque Depth``, 0: nothing transparent lies in front of the plaques), so
-    stacked plaques clear once.
+    inside), ``center`` the plaque's centre, ``layer`` its index in the scene. Only the plaque surface nearest
+    the camera clears (``Transparent Depth == First Plaque Depth``, 0: nothing transparent lies in front of the
+    plaques), so stacked plaques clear once.
     """
     material, tree, out = _new_material("platesynth.plaque")
     shared = stain.sockets(tree)
     offset = _plate_offset(tree)
     from_centre = vector_math(tree, "SUBTRACT", output(add(tree, "ShaderNodeTexCoord"), "Object"), _attribute(tree, "center", "Vector"))
     parts = feed(tree, add(tree, "ShaderNodeSeparateXYZ"), Vector=from_centre)
-    distance = math(tree, "SQRT", math(tree, "ADD", math(tree, "POWER", output(parts, "X"), 2.0), math(tree, "POWER", output(parts, "Y"), 2.0)))
-    # fibres: about 128 noise cells around the plaque, 0.3 mm along its radius (no seam: a circle in 3-D noise)
-    around = math(tree, "DIVIDE", FRAY_CELLS_AROUND / tau, math(tree, "MAXIMUM", distance, 1e-6))
-    fibre_xyz = feed(
-        tree,
-        add(tree, "ShaderNodeCombineXYZ"),
-        X=math(tree, "MULTIPLY", output(parts, "X"), around),
-        Y=math(tree, "MULTIPLY", output(parts, "Y"), around),
-        Z=math(tree, "DIVIDE", distance, FRAY_CELL_MM),
-    )
-    fray = _unit_noise(tree, fibre_xyz, 1.0, _well_value(tree, "well_texture_seed"))
+    du, dv = output(parts, "X"), math(tree, "MULTIPLY", output(parts, "Y"), -1.0)
+    distance = math(tree, "SQRT", math(tree, "ADD", math(tree, "POWER", du, 2.0), math(tree, "POWER", dv, 2.0)))
+    tile_columns = noise.fine_tile.size[0]
+    around = math(tree, "MULTIPLY", math(tree, "ARCTAN2", dv, du), tile_columns / tau)
+    along = math(tree, "MULTIPLY_ADD", _attribute(tree, "layer"), 7.37, math(tree, "DIVIDE", distance, FUZZ_CELL_MM))
+    fray = _lookup(tree, noise.fine_tile, around, along, periodic=True)
     t = math(tree, "MULTIPLY_ADD", _attribute(tree, "signed_w"), -1.0 / 1.5, math(tree, "MULTIPLY_ADD", fray, 0.2, 0.5))
     edge = _smoothstep(tree, t, 0.0, 1.0)
-    # smooth blotches about 0.25 mm across, as the raster renderer's residual tile (0.1 mm cells smoothed by 1.2)
-    residual_noise = _unit_noise(tree, offset, 0.25, math(tree, "ADD", _well_value(tree, "well_texture_seed"), 71.0))
+    u, v = _plate_position(tree)
+    residual_noise = _lookup(
+        tree,
+        noise.residual_tile,
+        _in_cells(tree, u, _well_value(tree, "well_noise_y"), RESIDUAL_CELL_MM),
+        _in_cells(tree, v, _well_value(tree, "well_noise_x"), RESIDUAL_CELL_MM),
+        periodic=True,
+    )
     residual = math(tree, "MINIMUM", math(tree, "MAXIMUM", math(tree, "MULTIPLY_ADD", residual_noise, 0.03, 0.03), 0.0), 0.2)
     clearing = math(tree, "MULTIPLY", math(tree, "MULTIPLY", _attribute(tree, "clearness"), edge), math(tree, "SUBTRACT", 1.0, residual))
     path = add(tree, "ShaderNodeLightPath")
@@ -407,15 +440,20 @@ def ink_material() -> bpy.types.Material:
     return material
 
 
-def blot_material() -> bpy.types.Material:
-    """A smudge on the plastic, as the raster renderer draws it: its opacity falls off as a Gaussian
-    ``opacity * exp(-d**2 / radius**2)`` and the light passing it is multiplied by ``1 - a * (1 - colour)``."""
+def blot_material(noise: NoiseImages) -> bpy.types.Material:
+    """A smudge on the plastic, as the raster renderer draws it: its opacity falls off as a Gaussian distorted by
+    the unevenness grid ``g``, ``opacity * exp(-(d / radius)**2 * (1 + 0.3 g))``, and the light passing it is
+    multiplied by ``1 - a * (1 - colour)``."""
     material, tree, out = _new_material("platesynth.blot")
     position = output(add(tree, "ShaderNodeTexCoord"), "Object")
     flat = feed(tree, add(tree, "ShaderNodeVectorMath", operation="MULTIPLY"), Vector=position, Vector_1=(1.0, 1.0, 0.0))
     distance = output(vector_math(tree, "DISTANCE", flat, _attribute(tree, "blot_center", "Vector")), "Value")
     relative = math(tree, "DIVIDE", distance, _attribute(tree, "blot_radius"))
-    opacity = math(tree, "MULTIPLY", _attribute(tree, "blot_opacity"), math(tree, "EXPONENT", math(tree, "MULTIPLY", math(tree, "POWER", relative, 2.0), -1.0)))
+    u, v = _plate_position(tree)
+    cell = noise.low_cell_mm
+    distortion = math(tree, "MULTIPLY_ADD", _lookup(tree, noise.low_grid, _in_cells(tree, u, 0.0, cell), _in_cells(tree, v, 0.0, cell), periodic=False), 0.3, 1.0)
+    falloff = math(tree, "MULTIPLY", math(tree, "MULTIPLY", math(tree, "POWER", relative, 2.0), distortion), -1.0)
+    opacity = math(tree, "MULTIPLY", _attribute(tree, "blot_opacity"), math(tree, "EXPONENT", falloff))
     tinted = add(tree, "ShaderNodeMix", data_type="RGBA", blend_type="MIX", clamp_result=False)
     feed(tree, tinted, Factor=opacity, A=(1.0, 1.0, 1.0, 1.0), B=_attribute(tree, "blot_rgb", "Color"))
     link(tree, feed(tree, add(tree, "ShaderNodeBsdfTransparent"), Color=output(tinted, "Result")), out)

@@ -23,10 +23,14 @@ from mathutils import Matrix
 from platesynth.render.blender.inside import geometry, materials, plate
 from platesynth.render._kernels import FLOOR_TRANSMITTANCE, WALL_BAND_GAIN
 from platesynth.render.raster import plate_relief, texels_per_mm
-from platesynth.scene.params import PlateGeometry
+from platesynth.render.textures import SceneTextures, plate_grid_index, scene_textures
+from platesynth.scene.params import PlateGeometry, Scene
 
 PASS_PROPERTY = "platesynth_pass"
 RULER_WIDTH_MM = 22.0
+FRINGE_MARGIN = 1.5
+"""How far a plaque's frayed edge reaches beyond its outline, in edge widths: where the raster renderer's fray
+(0.2 unit-sd noise over 1.5 widths) ends for noise up to 2.5 standard deviations."""
 
 
 def reset() -> None:
@@ -55,9 +59,12 @@ def build(description: Mapping[str, Any]) -> dict[str, bpy.types.Object]:
     plate_data = scene_data["plate"]
     well_radius = float(plate_data["well_radius_mm"])
     toward_camera = float(view["toward_camera"])
-    stain = materials.StainInputs(tuple(view["stain_linear_rgb"]), well_radius, scene_data["stain"], float(view["pixel_mm"]))
+    stain = materials.StainInputs(tuple(view["stain_linear_rgb"]), well_radius, scene_data["stain"])
+    concrete = Scene.model_validate(scene_data)
+    textures = scene_textures(concrete)
+    noise = _noise_images(textures)
     transmittance = materials.transmittance_group()
-    stain_group = materials.stain_group(transmittance, stain.pixel_mm, with_lysis=any(w["lysed"] for w in scene_data["wells"]))
+    stain_group = materials.stain_group(transmittance, noise)
     objects: dict[str, bpy.types.Object] = {}
 
     look = scene_data["plate_look"]
@@ -67,7 +74,7 @@ def build(description: Mapping[str, Any]) -> dict[str, bpy.types.Object]:
     plastic = (tuple(look["tint_rgb"]), float(look["transmittance"]))
 
     wells = scene_data["wells"]
-    well_attributes = _well_attributes(wells, int(scene_data["seed"]))
+    well_attributes = _well_attributes(wells, textures.well_offsets[[plate_grid_index(concrete.plate, w["center_mm"]) for w in wells]])
     well_points = geometry.point_cloud("platesynth.wells", _with_z(_world_xy([w["center_mm"] for w in wells]), 0.0), well_attributes)
     monolayer = materials.monolayer_material(stain_group, stain, plastic[0], FLOOR_TRANSMITTANCE)
     geometry.add_modifier(well_points, geometry.wells_group(monolayer), {"Well Radius": well_radius})
@@ -106,7 +113,7 @@ def build(description: Mapping[str, Any]) -> dict[str, bpy.types.Object]:
     harmonics = max((len(p["fourier"]) for p in plaques), default=0)
     plaque_attributes = _plaque_attributes(plaques, wells, well_attributes, harmonics)
     plaque_xyz = _with_z(_world_xy([p["center_mm"] for p in plaques]), 0.0)
-    plaque_group = geometry.plaques_group(materials.plaque_material(transmittance, stain_group, stain), harmonics)
+    plaque_group = geometry.plaques_group(materials.plaque_material(transmittance, stain_group, stain, noise), harmonics)
     step = toward_camera * geometry.LAYER_STEP_MM
     # the masks: the outlines, later plaques on top
     outlines = geometry.point_cloud("platesynth.plaques", plaque_xyz, plaque_attributes)
@@ -115,14 +122,14 @@ def build(description: Mapping[str, Any]) -> dict[str, bpy.types.Object]:
     # the image: the fully cleared cores on top, the frayed edges (a ring over the outline) under all of them
     cores = bpy.data.objects.new("platesynth.plaque_cores", outlines.data)
     bpy.context.scene.collection.objects.link(cores)
-    geometry.add_modifier(cores, plaque_group, {"Well Radius": well_radius, "Layer Step": step, "Layer Offset": float(len(plaques)), "Core Shrink": 1.0})
+    geometry.add_modifier(cores, plaque_group, {"Well Radius": well_radius, "Layer Step": step, "Layer Offset": float(len(plaques)), "Core Shrink": 1.0, "Layer By Clearness": True})
     objects["plaque_cores"] = _tag(cores, "image")
     fringes = bpy.data.objects.new("platesynth.plaque_fringes", outlines.data)
     bpy.context.scene.collection.objects.link(fringes)
-    geometry.add_modifier(fringes, plaque_group, {"Well Radius": well_radius, "Layer Step": step, "Fringe": True, "Margin": 1.0, "Core Shrink": 1.0})
+    geometry.add_modifier(fringes, plaque_group, {"Well Radius": well_radius, "Layer Step": step, "Fringe": True, "Margin": FRINGE_MARGIN, "Core Shrink": 1.0})
     objects["plaque_fringes"] = _tag(fringes, "image")
 
-    _artifacts(scene_data, view, transmittance, stain, wells, well_attributes, objects)
+    _artifacts(scene_data, view, transmittance, stain, noise, wells, well_attributes, objects)
     _backdrop(scene_data, view, objects)
     _camera(view)
     world = bpy.data.worlds.new("platesynth.world")
@@ -134,17 +141,34 @@ def build(description: Mapping[str, Any]) -> dict[str, bpy.types.Object]:
     return objects
 
 
+def _data_image(name: str, values: np.ndarray) -> bpy.types.Image:
+    """A 2-D float array as a packed, non-colour image (the array's row 0 at the image's bottom)."""
+    image = bpy.data.images.new(name, values.shape[1], values.shape[0], float_buffer=True, is_data=True)
+    rgba = np.repeat(np.asarray(values, dtype=np.float32)[:, :, None], 4, axis=2)
+    rgba[..., 3] = 1.0
+    image.pixels.foreach_set(rgba.ravel())
+    image.pack()
+    return image
+
+
+def _noise_images(textures: SceneTextures) -> materials.NoiseImages:
+    fibre_grid = None if textures.fibre_grid is None else _data_image("platesynth.fibre_grid", textures.fibre_grid)
+    return materials.NoiseImages(
+        _data_image("platesynth.low_grid", textures.low_grid),
+        textures.low_cell_mm,
+        fibre_grid,
+        _data_image("platesynth.fine_tile", textures.fine_tile),
+        _data_image("platesynth.residual_tile", textures.residual_tile),
+    )
+
+
 def _relief(scene_data: Mapping[str, Any], view: Mapping[str, Any]) -> tuple[bpy.types.Image, float, float]:
     """The raster renderer's plate-space relief (embossed labels, label rings, frame and ribs) as a float image,
     its texels per mm and the plate's label strength."""
     k = texels_per_mm(1.0 / float(view["pixel_mm"]))
     relief = plate_relief(PlateGeometry.model_validate(scene_data["plate"]), k)
-    image = bpy.data.images.new("platesynth.relief", relief.shape[1], relief.shape[0], float_buffer=True, is_data=True)
-    rgba = np.repeat(relief[::-1, :, None], 4, axis=2)
-    rgba[..., 3] = 1.0
-    image.pixels.foreach_set(rgba.astype(np.float32).ravel())
-    image.pack()
-    return image, k, float(scene_data["plate_look"]["label_strength"])
+    # the relief's row 0 is at plate y = 0, the top: the lookup reads world y (up) from the image's top
+    return _data_image("platesynth.relief", relief[::-1]), k, float(scene_data["plate_look"]["label_strength"])
 
 
 def _rims(
@@ -189,18 +213,17 @@ def _rims(
     objects["rims"] = _tag(rims, "image")
 
 
-def _well_attributes(wells: Sequence[Mapping[str, Any]], seed: int) -> dict[str, np.ndarray]:
+def _well_attributes(wells: Sequence[Mapping[str, Any]], well_offsets: np.ndarray) -> dict[str, np.ndarray]:
+    """The wells' point attributes (:data:`materials.WELL_VECTORS`); ``well_offsets[i]``: well ``i``'s shift into the noise tiles."""
     stains = [w["stain"] for w in wells]
     centres = _with_z(_world_xy([w["center_mm"] for w in wells]), 0.0)
     attributes: dict[str, np.ndarray] = {
         "well_id": np.array([w["id"] for w in wells], dtype=np.int32),
         "well_center": centres,
         "well_stain": np.array([[s["density"], s["centre_gradient"], s["drying_detail"]] for s in stains], dtype=np.float64).reshape(-1, 3),
-        # a different texture pattern per well and scene
-        "well_state": np.array(
-            [[float(w["emptied"]), float(w["lysed"]), (seed % 9973) * 0.1 + 13.0 * i] for i, w in enumerate(wells)], dtype=np.float64
-        ).reshape(-1, 3),
+        "well_state": np.array([[float(w["emptied"]), float(w["lysed"]), 0.0] for w in wells], dtype=np.float64).reshape(-1, 3),
         "well_centre": np.array([[*s["centre_offset_mm"], s["centre_angle_deg"]] for s in stains], dtype=np.float64).reshape(-1, 3),
+        "well_noise": _with_z(np.asarray(well_offsets, dtype=np.float64).reshape(-1, 2), 0.0),
     }
     return attributes
 
@@ -220,6 +243,9 @@ def _plaque_attributes(plaques: Sequence[Mapping[str, Any]], wells: Sequence[Map
         "softness": np.array([p["softness"] for p in plaques], dtype=np.float64),
         "clearness": np.array([p["clearness"] for p in plaques], dtype=np.float64),
         "layer": np.arange(len(plaques), dtype=np.float64),
+        # the clearest plaques' cores nearest the camera: where cores overlap, the clearest shows (the raster
+        # renderer's union clears at least that much)
+        "clearness_rank": np.argsort(np.argsort([p["clearness"] for p in plaques], kind="stable"), kind="stable").astype(np.float64),
     }
     for k in range(harmonics):
         for which, name in ((0, "a"), (1, "b")):
@@ -232,6 +258,7 @@ def _artifacts(
     view: Mapping[str, Any],
     transmittance: bpy.types.NodeTree,
     stain: materials.StainInputs,
+    noise: materials.NoiseImages,
     wells: Sequence[Mapping[str, Any]],
     well_attributes: Mapping[str, np.ndarray],
     objects: dict[str, bpy.types.Object],
@@ -281,7 +308,7 @@ def _artifacts(
         }
         # the raster renderer's Gaussian smudge reaches twice the blot's radius
         smudges = geometry.discs("platesynth.blots", centres, 2.0 * radii, away * 0.65, attributes)
-        smudges.data.materials.append(materials.blot_material())
+        smudges.data.materials.append(materials.blot_material(noise))
         objects["blots"] = _tag(smudges, "image")
 
 

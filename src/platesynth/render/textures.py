@@ -1,0 +1,98 @@
+"""The scene's noise textures, drawn once from its seed and read by both renderers.
+
+The raster renderer samples these arrays in its kernels; the Blender backend turns them into image textures
+that its shaders look up at the same plate positions. So a scene has one stain unevenness, one drying texture,
+one plaque fray and one pattern of lysed remnants, whichever renderer draws it.
+
+Every random stream a renderer draws from a scene's seed is one of :data:`STREAMS`, spawned from
+``numpy.random.SeedSequence(scene.seed)``: adding a stream never changes the others.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy import ndimage
+
+from platesynth.scene.params import PlateGeometry, Scene
+
+STREAMS = ("well_offsets", "unevenness", "fibres", "desk", "fine", "residual", "post")
+"""The renderers' random streams, in the order they are spawned from the scene's seed."""
+
+FINE_CELL_MM = 0.05
+"""Cell of the drying texture on the monolayer (the fine tile)."""
+FUZZ_CELL_MM = 0.15
+"""Cell of a plaque's frayed edge along its radius (the fine tile again; around the plaque its 256 columns)."""
+RESIDUAL_CELL_MM = 0.1
+"""Cell of the stain left inside plaques (the residual tile)."""
+FIBRE_CELL_MM = 0.25
+"""Cell of the strands left in lysed wells (the fibre grid)."""
+WELL_OFFSET_RANGE_MM = 100.0
+"""Each well reads the periodic tiles shifted by its own offset, uniform in [0, this)."""
+
+
+def scene_rng(seed: int, stream: str) -> np.random.Generator:
+    """The generator of one of :data:`STREAMS` for a scene's ``seed``."""
+    return np.random.default_rng(np.random.SeedSequence(int(seed)).spawn(len(STREAMS))[STREAMS.index(stream)])
+
+
+def plate_grid_index(plate: PlateGeometry, center_mm: tuple[float, float]) -> int:
+    """Row-major index in the plate's own grid (row letter, then column number) of the well centred at
+    ``center_mm``; may lie outside ``range(rows * cols)`` for a point off the grid."""
+    col = round((center_mm[0] - plate.a1_x_mm) / plate.pitch_mm)
+    row = round((center_mm[1] - plate.a1_y_mm) / plate.pitch_mm)
+    return row * plate.cols + col if 0 <= row < plate.rows and 0 <= col < plate.cols else -1
+
+
+def noise_grid(rng: np.random.Generator, shape: tuple[int, int], smooth: float, periodic: bool = False) -> np.ndarray:
+    """Zero-mean, unit-sd Gaussian-smoothed noise of ``shape`` (float32); ``periodic`` wraps at the edges."""
+    grid = rng.standard_normal(shape).astype(np.float32)
+    grid = ndimage.gaussian_filter(grid, smooth, mode="wrap" if periodic else "nearest")
+    return ((grid - grid.mean()) / (grid.std() + 1e-6)).astype(np.float32)
+
+
+@dataclass(frozen=True)
+class SceneTextures:
+    """A scene's noise textures (all zero mean, unit standard deviation).
+
+    Grids cover the plate from its corner (plate millimetres ``(u, v)`` are read at column ``u / cell`` and row
+    ``v / cell``, clamped at the border); tiles are periodic and read at ``(u + offset) / cell``.
+
+    Attributes
+    ----------
+    well_offsets : (n_wells, 2) array
+        Each well's shift into the tiles (mm), row ``i`` for the well at :func:`plate_grid_index` ``i``.
+    low_grid, low_cell_mm : the stain's low-frequency unevenness (cells half the unevenness scale).
+    fibre_grid : the lysed wells' strands (cells :data:`FIBRE_CELL_MM`); ``None`` when no well is lysed.
+    fine_tile : 256 x 256 tile of the drying texture and of the plaques' fray.
+    residual_tile : 128 x 128 tile of the stain left inside plaques.
+    """
+
+    well_offsets: np.ndarray
+    low_grid: np.ndarray
+    low_cell_mm: float
+    fibre_grid: np.ndarray | None
+    fine_tile: np.ndarray
+    residual_tile: np.ndarray
+
+
+def scene_textures(scene: Scene) -> SceneTextures:
+    """Draw the noise textures of ``scene`` from its seed (the same arrays on every call)."""
+    plate, seed = scene.plate, scene.seed
+    low_cell = scene.stain.unevenness_scale_mm / 2.0
+
+    def plate_grid(cell_mm: float) -> tuple[int, int]:
+        return int(plate.width_mm / cell_mm) + 3, int(plate.length_mm / cell_mm) + 3
+
+    fibre_grid = None
+    if any(w.lysed for w in scene.wells):
+        fibre_grid = noise_grid(scene_rng(seed, "fibres"), plate_grid(FIBRE_CELL_MM), 2.0)
+    return SceneTextures(
+        well_offsets=scene_rng(seed, "well_offsets").uniform(0.0, WELL_OFFSET_RANGE_MM, (len(scene.wells), 2)),
+        low_grid=noise_grid(scene_rng(seed, "unevenness"), plate_grid(low_cell), 1.5),
+        low_cell_mm=low_cell,
+        fibre_grid=fibre_grid,
+        fine_tile=noise_grid(scene_rng(seed, "fine"), (256, 256), 0.8, periodic=True),
+        residual_tile=noise_grid(scene_rng(seed, "residual"), (128, 128), 1.2, periodic=True),
+    )
