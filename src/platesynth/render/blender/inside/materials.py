@@ -353,10 +353,15 @@ def plaque_material(transmittance: bpy.types.NodeTree, stain_group: bpy.types.No
 
 def marks_material(transmittance: bpy.types.NodeTree, stain: StainInputs) -> bpy.types.Material:
     """Scratches and specks on the monolayer: each mark's ``mark_clearing`` (stain scraped off) and ``mark_extra``
-    (density added) attributes change the stain of the well under it, inside the well's floor only."""
+    (density added) attributes change the stain of the well under it, inside the well's floor only, where the
+    mark is the first film the camera ray meets (marks lie in front of the plaques, whose films then leave the
+    stain alone: clearing twice would overshoot the light)."""
     material, tree, out = _new_material("platesynth.marks")
     # only on the monolayer: a scratch running up the wall changes nothing beyond the floor's edge
     on_floor = math(tree, "LESS_THAN", output(vector_math(tree, "LENGTH", _plate_offset(tree)), "Value"), stain.well_radius)
+    # only the film nearest the camera changes the stain (see :func:`plaque_material`)
+    topmost = math(tree, "COMPARE", output(add(tree, "ShaderNodeLightPath"), "Transparent Depth"), 0.0, 0.5)
+    on_floor = math(tree, "MULTIPLY", on_floor, topmost)
     clearing = math(tree, "MULTIPLY", _attribute(tree, "mark_clearing"), on_floor)
     extra = math(tree, "MULTIPLY", _attribute(tree, "mark_extra"), on_floor)
     ratio = _change_ratio(tree, transmittance, stain.sockets(tree), _well_value(tree, "well_density"), clearing, extra)

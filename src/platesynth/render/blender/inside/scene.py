@@ -28,9 +28,14 @@ from platesynth.scene.params import PlateGeometry, Scene
 
 PASS_PROPERTY = "platesynth_pass"
 RULER_WIDTH_MM = 22.0
-FRINGE_MARGIN = 1.5
-"""How far a plaque's frayed edge reaches beyond its outline, in edge widths: where the raster renderer's fray
-(0.2 unit-sd noise over 1.5 widths) ends for noise up to 2.5 standard deviations."""
+MARKS_HEIGHT_MM = 0.3
+"""Scratches and specks lie this far in front of the floors, nearer the camera than any plaque film."""
+FRINGE_BANDS = ((-1.0, 0.0), (0.0, 0.5), (0.5, 1.5))
+"""A plaque's frayed edge as rings between these signed distances to its outline, in edge widths (from the core's
+rim, one width inside, to where the raster renderer's fray of 0.2 unit-sd noise over 1.5 widths ends for noise
+up to 2.5 standard deviations). Only the film nearest the camera clears, so the inner bands of all plaques lie
+above the outer ones: where two edges overlap, the clearer one shows (the raster renderer's union clears at
+least as much)."""
 
 
 def reset() -> None:
@@ -119,15 +124,20 @@ def build(description: Mapping[str, Any]) -> dict[str, bpy.types.Object]:
     outlines = geometry.point_cloud("platesynth.plaques", plaque_xyz, plaque_attributes)
     geometry.add_modifier(outlines, plaque_group, {"Well Radius": well_radius, "Layer Step": step})
     objects["plaques"] = _tag(outlines, "mask")
-    # the image: the fully cleared cores on top, the frayed edges (a ring over the outline) under all of them
+    # the image: the fully cleared cores on top, then the frayed edges as rings, the inner (clearer) bands of
+    # every plaque above the outer ones, so that where edges overlap the clearer one shows
+    n = float(len(plaques))
     cores = bpy.data.objects.new("platesynth.plaque_cores", outlines.data)
     bpy.context.scene.collection.objects.link(cores)
-    geometry.add_modifier(cores, plaque_group, {"Well Radius": well_radius, "Layer Step": step, "Layer Offset": float(len(plaques)), "Core Shrink": 1.0, "Layer By Clearness": True})
+    core_inputs = {"Layer Offset": len(FRINGE_BANDS) * n, "Core Shrink": 1.0, "Layer By Clearness": True}
+    geometry.add_modifier(cores, plaque_group, {"Well Radius": well_radius, "Layer Step": step} | core_inputs)
     objects["plaque_cores"] = _tag(cores, "image")
-    fringes = bpy.data.objects.new("platesynth.plaque_fringes", outlines.data)
-    bpy.context.scene.collection.objects.link(fringes)
-    geometry.add_modifier(fringes, plaque_group, {"Well Radius": well_radius, "Layer Step": step, "Fringe": True, "Margin": FRINGE_MARGIN, "Core Shrink": 1.0})
-    objects["plaque_fringes"] = _tag(fringes, "image")
+    for band, (inner, outer) in enumerate(FRINGE_BANDS):
+        fringes = bpy.data.objects.new(f"platesynth.plaque_fringes_{band}", outlines.data)
+        bpy.context.scene.collection.objects.link(fringes)
+        band_inputs = {"Fringe": True, "Core Shrink": -inner, "Margin": outer, "Layer Offset": (len(FRINGE_BANDS) - 1 - band) * n}
+        geometry.add_modifier(fringes, plaque_group, {"Well Radius": well_radius, "Layer Step": step} | band_inputs)
+        objects[f"plaque_fringes_{band}"] = _tag(fringes, "image")
 
     _artifacts(scene_data, view, transmittance, stain, noise, wells, well_attributes, objects)
     _backdrop(scene_data, view, objects)
@@ -285,7 +295,9 @@ def _artifacts(
         extra.append(speck["darkness"])
     if lines:
         attributes = _per_well(owners, wells, well_attributes) | {"mark_clearing": np.array(clearing), "mark_extra": np.array(extra)}
-        marks = geometry.strips("platesynth.marks", lines, halves, away * 0.3, attributes)
+        # in front of the plaques: under a mark no plaque clears (only the nearest film clears), so a scratch
+        # over a plaque clears once instead of twice
+        marks = geometry.strips("platesynth.marks", lines, halves, -away * MARKS_HEIGHT_MM, attributes)
         marks.data.materials.append(materials.marks_material(transmittance, stain))
         objects["marks"] = _tag(marks, "image")
 
