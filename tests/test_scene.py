@@ -219,6 +219,13 @@ def test_load_scene_reports_bad_files(tmp_path):
     bad.write_text(json.dumps({**scene.model_dump(mode="json"), "plaques": "many"}))
     with pytest.raises(ParameterError, match="bad.json: not a valid scene"):
         load_scene(bad)
+    params = tmp_path / "000000.json"  # a dataset's params file holds the scene under "scene"
+    params.write_text(json.dumps({"seed": 1, "size": [64, 48], "backend": "raster", "scene": scene.model_dump(mode="json")}))
+    assert load_scene(params) == scene
+    broken = tmp_path / "broken.json"
+    broken.write_text("{not json")
+    with pytest.raises(ParameterError, match="broken.json: not a JSON file"):
+        load_scene(broken)
 
 
 def test_cli_scene_params_json_and_errors():

@@ -13,6 +13,8 @@ Units and conventions (shared by the raster and the Blender renderer):
 
 from __future__ import annotations
 
+import json
+
 from pathlib import Path
 from typing import Literal
 
@@ -254,7 +256,13 @@ def load_scene(path: str | Path) -> Scene:
     if not path.is_file():
         raise ParameterError(f"{path}: no such scene file")
     try:
-        return Scene.model_validate_json(path.read_text())
+        data = json.loads(path.read_text())
+    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+        raise ParameterError(f"{path}: not a JSON file ({exc})") from None
+    if isinstance(data, dict) and "scene" in data and "plate" not in data:
+        data = data["scene"]  # a dataset's params file: the scene and how it was rendered
+    try:
+        return Scene.model_validate(data)
     except ValidationError as exc:
         first = exc.errors()[0]
         where = ".".join(str(part) for part in first["loc"])
