@@ -119,7 +119,7 @@ def realism(args: argparse.Namespace) -> None:
 def main(argv: list[str] | None = None) -> int:
     """Print the speed table (and the realism table with ``--realism N``)."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--count", type=int, default=5, help="timed scenes")
+    parser.add_argument("--count", type=int, default=5, help="timed scenes (0: only the realism table)")
     parser.add_argument("--size", default="1024x768", help="WIDTHxHEIGHT of the timed renders")
     parser.add_argument("--samples", type=int, default=None, help="Cycles samples (default: the backend's)")
     parser.add_argument("--preset", default="high")
@@ -134,7 +134,8 @@ def main(argv: list[str] | None = None) -> int:
         return 0
     if args.quick:
         args.count, args.realism = 2, 0
-    speed(args)
+    if args.count:
+        speed(args)
     if args.realism:
         realism(args)
     return 0
