@@ -383,11 +383,34 @@ def _relief_factor(tree: bpy.types.NodeTree, relief: bpy.types.Image, texels_per
     return math(tree, "MAXIMUM", factor, 0.0)
 
 
+def _skirt_shade(tree: bpy.types.NodeTree, plate: Mapping[str, float]) -> bpy.types.NodeSocket:
+    """The raster renderer's skirt shading: ``1 - 0.25 * clip((d + skirt) / skirt)`` with ``d`` the signed
+    distance to the plate's outline (a rounded rectangle with the A1 corner chamfered; negative inside)."""
+    u, v = _plate_position(tree)
+    half_l, half_w, corner = plate["length_mm"] / 2, plate["width_mm"] / 2, plate["corner_radius_mm"]
+    qx = math(tree, "SUBTRACT", math(tree, "ABSOLUTE", math(tree, "SUBTRACT", u, half_l)), half_l - corner)
+    qy = math(tree, "SUBTRACT", math(tree, "ABSOLUTE", math(tree, "SUBTRACT", v, half_w)), half_w - corner)
+    outside = math(tree, "SQRT", math(tree, "ADD", math(tree, "POWER", math(tree, "MAXIMUM", qx, 0.0), 2.0), math(tree, "POWER", math(tree, "MAXIMUM", qy, 0.0), 2.0)))
+    signed = math(tree, "SUBTRACT", math(tree, "ADD", outside, math(tree, "MINIMUM", math(tree, "MAXIMUM", qx, qy), 0.0)), corner)
+    chamfered = math(tree, "MULTIPLY", math(tree, "SUBTRACT", math(tree, "SUBTRACT", plate["chamfer_mm"], u), v), 0.5**0.5)
+    signed = math(tree, "MAXIMUM", signed, chamfered)
+    skirt = max(float(plate["skirt_mm"]), 1e-3)
+    shade = math(tree, "MULTIPLY_ADD", math(tree, "ADD", signed, skirt), 1.0 / skirt, 0.0)
+    shade.use_clamp = True
+    return math(tree, "MULTIPLY_ADD", shade, -0.25, 1.0)
+
+
 def plastic_material(
-    name: str, tint_rgb: tuple[float, float, float], transmittance: float, rim_darkness: float, relief: tuple[bpy.types.Image, float, float] | None = None
+    name: str,
+    tint_rgb: tuple[float, float, float],
+    transmittance: float,
+    rim_darkness: float,
+    relief: tuple[bpy.types.Image, float, float] | None = None,
+    plate: Mapping[str, float] | None = None,
 ) -> bpy.types.Material:
     """Polystyrene: tinted see-through plastic whose grazing faces (the walls seen edge-on) pass less light;
-    ``relief`` = (image, texels per mm, label strength) adds the embossed labels, label rings and ribs."""
+    ``relief`` = (image, texels per mm, label strength) adds the embossed labels, label rings and ribs, ``plate``
+    (the scene's plate geometry) the skirt's shading along the outline."""
     material, tree, out = _new_material(name)
     facing = feed(tree, add(tree, "ShaderNodeLayerWeight"), Blend=0.5)
     # only faces seen nearly edge-on darken (the walls' outlines), not the whole wall seen at a slant
@@ -397,17 +420,36 @@ def plastic_material(
     passing.use_clamp = True  # Facing leaves [0, 1] on back faces seen at a grazing angle
     if relief is not None:
         passing = math(tree, "MULTIPLY", passing, _relief_factor(tree, *relief))
+    if plate is not None:
+        passing = math(tree, "MULTIPLY", passing, _skirt_shade(tree, plate))
     feed(tree, colour, Vector=_plastic_colour(tree, tint_rgb, transmittance), Scale=passing)
     link(tree, feed(tree, add(tree, "ShaderNodeBsdfTransparent"), Color=output(colour, "Vector")), out)
     return material
 
 
-def glow_material(name: str, rgb: tuple[float, float, float], strength: float, texture: float = 0.0, seed: float = 0.0) -> bpy.types.Material:
+def glow_material(
+    name: str,
+    rgb: tuple[float, float, float],
+    strength: float,
+    texture: float = 0.0,
+    seed: float = 0.0,
+    panel: tuple[float, float, float, float] | None = None,
+) -> bpy.types.Material:
     """A self-lit surface: the light box's panel (``strength`` = its brightness), its frame, a desk; with
-    low-frequency texture of amplitude ``texture`` (8 mm blotches)."""
+    low-frequency texture of amplitude ``texture`` (8 mm blotches). ``panel`` = (left, top, right, bottom), mm
+    from the plate's centre along the image axes, the frame of the surface's UV map: dims the glow towards the
+    panel's edges as the raster renderer does, by ``0.06 exp(-d / 6 mm)`` at ``d`` from the nearest edge."""
     material, tree, out = _new_material(name)
     emit = feed(tree, add(tree, "ShaderNodeEmission"), Color=_rgb(tree, "Colour", rgb))
     strength_socket: Any = _value(tree, "Strength", strength)
+    if panel is not None:
+        left, top, right, bottom = panel
+        uv = feed(tree, add(tree, "ShaderNodeSeparateXYZ"), Vector=output(add(tree, "ShaderNodeTexCoord"), "UV"))
+        bx, by = output(uv, "X"), output(uv, "Y")
+        to_edge = math(tree, "MINIMUM", math(tree, "SUBTRACT", bx, left), math(tree, "SUBTRACT", right, bx))
+        to_edge = math(tree, "MINIMUM", to_edge, math(tree, "MINIMUM", math(tree, "SUBTRACT", by, top), math(tree, "SUBTRACT", bottom, by)))
+        falloff = math(tree, "EXPONENT", math(tree, "DIVIDE", math(tree, "MAXIMUM", to_edge, 0.0), -6.0))
+        strength_socket = math(tree, "MULTIPLY", strength_socket, math(tree, "MULTIPLY_ADD", falloff, -0.06, 1.0))
     if texture > 0:
         coordinates = add(tree, "ShaderNodeTexCoord")
         grain = _unit_noise(tree, output(coordinates, "Object"), 8.0, seed)

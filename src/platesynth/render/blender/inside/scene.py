@@ -97,7 +97,7 @@ def build(description: Mapping[str, Any]) -> dict[str, bpy.types.Object]:
         # behind the floors' films, the rims' and the marks' (see :mod:`.plate`)
         "Deck Height": -toward_camera * 0.45,
     }
-    body_material = materials.plastic_material("platesynth.plastic", *plastic, float(look["rim_darkness"]), _relief(scene_data, view))
+    body_material = materials.plastic_material("platesynth.plastic", *plastic, float(look["rim_darkness"]), _relief(scene_data, view), plate_data)
     body = geometry.point_cloud("platesynth.plate_body", _with_z(_world_xy([w["center_mm"] for w in wells]), 0.0), {})
     # the deck tints the light once; the outer wall's faces only darken where they are seen edge-on
     side_material = materials.plastic_material("platesynth.plate_side", (1.0, 1.0, 1.0), 1.0, float(look["rim_darkness"]))
@@ -375,8 +375,9 @@ def _backdrop(scene_data: Mapping[str, Any], view: Mapping[str, Any], objects: d
         return
     left, top, right, bottom = (float(v) for v in background["panel_mm"])
     frame_mm = float(background["frame_mm"])
-    panel = materials.glow_material("platesynth.lightbox_panel", (1.0, 1.0, 1.0), float(background["brightness"]))
-    objects["panel"] = _quad("platesynth.lightbox_panel", view, (left, top, right, bottom), 0.5, panel)
+    panel = materials.glow_material("platesynth.lightbox_panel", (1.0, 1.0, 1.0), float(background["brightness"]), panel=(left, top, right, bottom))
+    # UV = the box's own frame (mm from the plate's centre along the image axes), for the glow's falloff
+    objects["panel"] = _quad("platesynth.lightbox_panel", view, (left, top, right, bottom), 0.5, panel, (1.0, 0.0, 0.0, 0.0, 1.0, 0.0))
     frame = materials.glow_material("platesynth.lightbox_frame", (1.0, 1.0, 1.0), 0.55)
     objects["frame"] = _quad("platesynth.lightbox_frame", view, (left - frame_mm, top - frame_mm, right + frame_mm, bottom + frame_mm), 1.0, frame)
     desk = materials.glow_material("platesynth.desk", desk_rgb, 1.0, float(background["texture"]), seed)
