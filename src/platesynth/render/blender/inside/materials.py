@@ -90,7 +90,9 @@ def _plate_position(tree: bpy.types.NodeTree) -> tuple[bpy.types.NodeSocket, bpy
 
 
 def _in_cells(tree: bpy.types.NodeTree, position_mm: Any, shift_mm: Any, cell_mm: Any) -> bpy.types.NodeSocket:
-    return math(tree, "DIVIDE", math(tree, "ADD", position_mm, shift_mm), cell_mm)
+    """``(position + shift) / cell``: a plate coordinate in a texture's cells (no node for a zero shift)."""
+    shifted = position_mm if isinstance(shift_mm, float) and shift_mm == 0.0 else math(tree, "ADD", position_mm, shift_mm)
+    return math(tree, "DIVIDE", shifted, cell_mm)
 
 
 def _attribute(tree: bpy.types.NodeTree, name: str, socket: str = "Fac") -> bpy.types.NodeSocket:
