@@ -20,6 +20,14 @@ FLOOR_TRANSMITTANCE = 0.96
 """Share of the light a well's thin bottom passes (the thick plastic between the wells passes ``plate_look.transmittance``)."""
 WALL_BAND_GAIN = 0.04
 """How much brighter the plate looks over a well's wall, seen end-on, than over the deck around it."""
+EDGE_SPAN = 1.5
+"""A plaque's clearing falls from full to none over this many edge widths, centred on its outline."""
+FRAY_AMPLITUDE = 0.2
+"""How far the fray noise (unit sd) shifts the edge's clearing ramp, as a share of the ramp."""
+FRAY_ROWS_PER_PLAQUE = 7.37
+"""Each plaque reads the fray tile this many rows further along, so that neighbours fray differently."""
+RESIDUAL_MEAN, RESIDUAL_SPREAD, RESIDUAL_MAX = 0.03, 0.03, 0.2
+"""Share of the stain left inside a cleared plaque: mean, noise amplitude (unit-sd residual tile) and cap."""
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -92,8 +100,8 @@ def draw_plaques(hinv, params, fourier, boxes, pixel_mm, from_below, top_radius,
         for k in range(n_harmonics):
             amplitude += abs(fourier[p, k, 0]) + abs(fourier[p, k, 1])
         width = max(edge, pixel_mm)
-        reach = radius * (1.0 + amplitude) + 1.5 * width
-        noise_dx = 7.37 * p
+        reach = radius * (1.0 + amplitude) + EDGE_SPAN * width
+        noise_dx = FRAY_ROWS_PER_PLAQUE * p
         y0, y1, x0, x1 = boxes[p, 0], boxes[p, 1], boxes[p, 2], boxes[p, 3]
         for y in range(y0, y1):
             for x in range(x0, x1):
@@ -126,7 +134,7 @@ def draw_plaques(hinv, params, fourier, boxes, pixel_mm, from_below, top_radius,
                 # radial fibres: noise that varies quickly around the plaque and slowly along its radius
                 around = math.atan2(dv, du) * (fuzz_tile.shape[1] / (2.0 * math.pi))
                 fray = _tile(fuzz_tile, around, dist / fuzz_cell_mm + noise_dx)
-                t = 0.5 - signed / (1.5 * width) + 0.2 * fray
+                t = 0.5 - signed / (EDGE_SPAN * width) + FRAY_AMPLITUDE * fray
                 if t <= 0.0:
                     continue
                 if t > 1.0:
@@ -338,7 +346,7 @@ def shade(
                     c_plaque = clear[y, x]
                     if c_plaque > 0.0:
                         residual = _tile(residual_tile, (u + wells[k, W_NOISE_Y]) / residual_cell_mm, (v + wells[k, W_NOISE_X]) / residual_cell_mm)
-                        residual = min(max(0.03 + 0.03 * residual, 0.0), 0.2)
+                        residual = min(max(RESIDUAL_MEAN + RESIDUAL_SPREAD * residual, 0.0), RESIDUAL_MAX)
                         density *= 1.0 - c_plaque * (1.0 - residual)
                     density = density * (1.0 - scratched[y, x]) + specks[y, x]
                     layer_r = translucency + (1.0 - translucency) * math.exp(-density * absorbance[0])

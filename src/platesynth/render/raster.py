@@ -321,7 +321,7 @@ def _draw_plaques(
         if p.fourier:
             fourier[i, : len(p.fourier)] = p.fourier
     pixel_mm = 1.0 / view.px_per_mm
-    reach = params[:, 2] * (1.0 + np.abs(fourier).sum(axis=(1, 2))) + 1.5 * np.maximum(params[:, 3], pixel_mm) + pixel_mm
+    reach = params[:, 2] * (1.0 + np.abs(fourier).sum(axis=(1, 2))) + kernels.EDGE_SPAN * np.maximum(params[:, 3], pixel_mm) + pixel_mm
     boxes = _boxes(view, params[:, :2], reach)
     kernels.draw_plaques(view.px_to_plate, params, fourier, boxes, pixel_mm, scene.camera.from_below, top_radius,
                          fuzz_tile, fuzz_cell_mm, clear, ids)

@@ -21,6 +21,7 @@ from typing import Any
 
 import bpy
 
+from platesynth.render._kernels import EDGE_SPAN, FRAY_AMPLITUDE, FRAY_ROWS_PER_PLAQUE, RESIDUAL_MAX, RESIDUAL_MEAN, RESIDUAL_SPREAD
 from platesynth.render.blender.inside.nodes import add, feed, link, math, output, vector_math
 from platesynth.render.textures import FIBRE_CELL_MM, FINE_CELL_MM, FUZZ_CELL_MM, RESIDUAL_CELL_MM
 
@@ -331,9 +332,9 @@ def plaque_material(transmittance: bpy.types.NodeTree, stain_group: bpy.types.No
     distance = math(tree, "SQRT", math(tree, "ADD", math(tree, "POWER", du, 2.0), math(tree, "POWER", dv, 2.0)))
     tile_columns = noise.fine_tile.size[0]
     around = math(tree, "MULTIPLY", math(tree, "ARCTAN2", dv, du), tile_columns / tau)
-    along = math(tree, "MULTIPLY_ADD", _attribute(tree, "layer"), 7.37, math(tree, "DIVIDE", distance, FUZZ_CELL_MM))
+    along = math(tree, "MULTIPLY_ADD", _attribute(tree, "layer"), FRAY_ROWS_PER_PLAQUE, math(tree, "DIVIDE", distance, FUZZ_CELL_MM))
     fray = _lookup(tree, noise.fine_tile, around, along, periodic=True)
-    t = math(tree, "MULTIPLY_ADD", _attribute(tree, "signed_w"), -1.0 / 1.5, math(tree, "MULTIPLY_ADD", fray, 0.2, 0.5))
+    t = math(tree, "MULTIPLY_ADD", _attribute(tree, "signed_w"), -1.0 / EDGE_SPAN, math(tree, "MULTIPLY_ADD", fray, FRAY_AMPLITUDE, 0.5))
     edge = _smoothstep(tree, t, 0.0, 1.0)
     u, v = _plate_position(tree)
     residual_noise = _lookup(
@@ -343,7 +344,7 @@ def plaque_material(transmittance: bpy.types.NodeTree, stain_group: bpy.types.No
         _in_cells(tree, v, _well_value(tree, "well_noise_x"), RESIDUAL_CELL_MM),
         periodic=True,
     )
-    residual = math(tree, "MINIMUM", math(tree, "MAXIMUM", math(tree, "MULTIPLY_ADD", residual_noise, 0.03, 0.03), 0.0), 0.2)
+    residual = math(tree, "MINIMUM", math(tree, "MAXIMUM", math(tree, "MULTIPLY_ADD", residual_noise, RESIDUAL_SPREAD, RESIDUAL_MEAN), 0.0), RESIDUAL_MAX)
     clearing = math(tree, "MULTIPLY", math(tree, "MULTIPLY", _attribute(tree, "clearness"), edge), math(tree, "SUBTRACT", 1.0, residual))
     path = add(tree, "ShaderNodeLightPath")
     topmost = math(tree, "COMPARE", output(path, "Transparent Depth"), _value(tree, "First Plaque Depth", 0.0), 0.5)

@@ -97,7 +97,7 @@ def build(description: Mapping[str, Any]) -> dict[str, bpy.types.Object]:
         # behind the floors' films, the rims' and the marks' (see :mod:`.plate`)
         "Deck Height": -toward_camera * 0.45,
     }
-    body_material = materials.plastic_material("platesynth.plastic", *plastic, float(look["rim_darkness"]), _relief(scene_data, view), plate_data)
+    body_material = materials.plastic_material("platesynth.plastic", *plastic, float(look["rim_darkness"]), _relief(concrete.plate, scene_data, view), plate_data)
     body = geometry.point_cloud("platesynth.plate_body", _with_z(_world_xy([w["center_mm"] for w in wells]), 0.0), {})
     # the deck tints the light once; the outer wall's faces only darken where they are seen edge-on
     side_material = materials.plastic_material("platesynth.plate_side", (1.0, 1.0, 1.0), 1.0, float(look["rim_darkness"]))
@@ -172,11 +172,11 @@ def _noise_images(textures: SceneTextures) -> materials.NoiseImages:
     )
 
 
-def _relief(scene_data: Mapping[str, Any], view: Mapping[str, Any]) -> tuple[bpy.types.Image, float, float]:
+def _relief(plate_geometry: PlateGeometry, scene_data: Mapping[str, Any], view: Mapping[str, Any]) -> tuple[bpy.types.Image, float, float]:
     """The raster renderer's plate-space relief (embossed labels, label rings, frame and ribs) as a float image,
     its texels per mm and the plate's label strength."""
     k = texels_per_mm(1.0 / float(view["pixel_mm"]))
-    relief = plate_relief(PlateGeometry.model_validate(scene_data["plate"]), k)
+    relief = plate_relief(plate_geometry, k)
     # the relief's row 0 is at plate y = 0, the top: the lookup reads world y (up) from the image's top
     return _data_image("platesynth.relief", relief[::-1]), k, float(scene_data["plate_look"]["label_strength"])
 
