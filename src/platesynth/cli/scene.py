@@ -52,7 +52,7 @@ def params(as_json: Annotated[bool, typer.Option("--json", help="Print JSON inst
 @user_errors
 def presets(as_json: Annotated[bool, typer.Option("--json", help="Print JSON instead of text.")] = False) -> None:
     """List the shipped presets with their first comment line."""
-    from platesynth.scene.config import PRESET_DIR, list_presets
+    from platesynth.scene.loading import PRESET_DIR, list_presets
 
     rows = []
     for name in list_presets():

@@ -1,16 +1,13 @@
-"""Scene parameters: the configuration (ranges), presets, seeded sampling and the concrete scene."""
+"""Scene parameters: the configuration (ranges), presets, seeded sampling and the concrete scene.
 
-from platesynth.scene.config import (
-    Categorical,
-    Dist,
-    SceneConfig,
-    dump_config,
-    list_presets,
-    load_config,
-    parameter_names,
-    parameter_table,
-    validate_config,
-)
+Parts: :mod:`~platesynth.scene.distributions` (what a configured value may be and how it is drawn),
+:mod:`~platesynth.scene.catalogue` (every parameter, by section), :mod:`~platesynth.scene.loading` (presets, YAML,
+overrides, validation), :mod:`~platesynth.scene.sample` (seed -> concrete scene) and the concrete scene itself.
+"""
+
+from platesynth.scene.catalogue import SceneConfig, parameter_names, parameter_table
+from platesynth.scene.distributions import Categorical, Dist
+from platesynth.scene.loading import dump_config, list_presets, load_config, validate_config
 from platesynth.scene.params import Plaque, Scene, Well, load_scene
 from platesynth.scene.sample import color_temperature_rgb, plate_geometry, sample_scene, stain_rgb
 

@@ -8,7 +8,7 @@ import math
 import numpy as np
 
 from platesynth.errors import ParameterError
-from platesynth.scene.config import SceneConfig
+from platesynth.scene.catalogue import SceneConfig
 from platesynth.scene.params import (
     Artifacts,
     Background,

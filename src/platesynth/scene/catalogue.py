@@ -1,0 +1,222 @@
+"""The parameter catalogue: every scene parameter, defined once, in the section it belongs to.
+
+Each parameter is a field of a :class:`Section` of :class:`SceneConfig`, declared with
+:func:`~platesynth.scene.distributions.number`, :func:`~platesynth.scene.distributions.probability` or
+:func:`~platesynth.scene.distributions.category`: its name, kind, unit, valid range, default and a one-line
+description. :func:`parameter_table` reads them for ``platesynth scene params`` and the docs;
+:mod:`platesynth.scene.sample` draws them (:meth:`Section.draw`).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+from pydantic import BaseModel, ConfigDict, Field, ValidationInfo, field_validator
+
+from platesynth.scene.distributions import Categorical, Dist, category, check_value, draw_value, number, probability
+
+
+class Section(BaseModel):
+    """A group of parameters; checks each against its valid range."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True, strict=True)
+
+    @field_validator("*", mode="after")
+    @classmethod
+    def _within_range(cls, value: Any, info: ValidationInfo) -> Any:
+        return check_value(value, cls.model_fields[info.field_name].json_schema_extra or {})
+
+    def draw(self, name: str, rng: np.random.Generator) -> Any:
+        """Draw the parameter ``name`` of this section with ``rng``.
+
+        Returns
+        -------
+        float, int, str or bool
+            See :func:`~platesynth.scene.distributions.draw_value`.
+        """
+        return draw_value(getattr(self, name), type(self).model_fields[name].json_schema_extra or {}, rng)
+
+
+class PlateConfig(Section):
+    """The plate."""
+
+    format: Dist = number(12, 6, 96, "wells", "number of wells (use {choice: [...]} to mix formats)", True, (6, 12, 24, 96))
+    transmittance: Dist = number([0.72, 0.85], 0.3, 1.0, "", "light passing the plastic between wells")
+    tint: Dist = number([0.0, 0.04], 0.0, 0.3, "", "blue tint of the plastic (0 = neutral)")
+    rim_darkness: Dist = number([0.25, 0.45], 0.0, 1.0, "", "darkness of the well-wall outlines")
+    label_strength: Dist = number([0.35, 0.7], 0.0, 1.0, "", "contrast of the embossed labels and rings")
+
+
+class CameraConfig(Section):
+    """Camera pose relative to the plate."""
+
+    from_below: float = probability(1.0, "chance the plate is photographed through its bottom (mirrored)")
+    plate_fill: Dist = number([1.13, 1.21], 0.2, 1.5, "", "plate length as a fraction of the image width")
+    rotation_deg: Dist = number({"normal": [0.0, 0.6]}, -10.0, 10.0, "deg", "in-plane rotation")
+    tilt_deg: Dist = number([0.0, 2.0], 0.0, 15.0, "deg", "tilt of the plate away from the camera axis")
+    offset: Dist = number({"normal": [0.0, 0.012]}, -0.2, 0.2, "image", "offset of the plate centre, per axis")
+    distance_mm: Dist = number([300, 500], 100, 2000, "mm", "camera distance (sets the parallax of the walls)")
+    defocus_px: Dist = number([0.0, 0.4], 0.0, 5.0, "px", "optical blur at 1024 px image width")
+
+
+class BackgroundConfig(Section):
+    """What lies around the plate."""
+
+    kind: Categorical = category("lightbox", ("lightbox", "desk"), "a light box under the plate, or a desk")
+    brightness: Dist = number([0.88, 1.0], 0.0, 1.0, "", "brightness of the light box panel or the desk")
+    desk_gray: Dist = number([0.03, 0.2], 0.0, 1.0, "", "grey level of the desk (or what surrounds the light box)")
+    texture: Dist = number([0.0, 0.05], 0.0, 0.5, "", "amplitude of the desk's surface texture")
+    ruler: float = probability(0.0, "chance of a ruler along the light box's edges")
+    panel_margin_x_mm: Dist = number([40, 120], -50, 300, "mm",
+                                     "distance from the plate's side to the nearest side edge of the light panel")
+    panel_margin_y_mm: Dist = number([-5, 3], -50, 300, "mm",
+                                     "distance from the plate's top/bottom to the nearest edge of the light panel")
+    panel_below: float = probability(0.85, "chance the nearest panel edge lies below the plate (else above)")
+
+
+class StainConfig(Section):
+    """The stained cell monolayer."""
+
+    hue_deg: Dist = number([246, 286], 0.0, 360.0, "deg", "stain hue (crystal violet 240-290, neutral red 345-360)")
+    saturation: Dist = number([0.9, 1.0], 0.0, 1.0, "", "stain saturation at nominal density")
+    value: Dist = number([0.9, 1.0], 0.0, 1.0, "", "stain value (brightness) at nominal density")
+    density: Dist = number([0.9, 1.15], 0.0, 3.0, "", "plate-wide stain density relative to nominal")
+    well_density_jitter: Dist = number([0.02, 0.08], 0.0, 0.5, "", "relative density change from well to well (sd)")
+    unevenness: Dist = number([0.04, 0.12], 0.0, 1.0, "", "low-frequency density variation")
+    unevenness_scale_mm: Dist = number([2.0, 6.0], 0.5, 30.0, "mm", "size of low-frequency blotches")
+    centre_gradient: Dist = number([0.0, 0.15], 0.0, 1.0, "", "extra density of the elongated dark centre")
+    centre_elongation: Dist = number([1.0, 2.0], 1.0, 5.0, "", "aspect ratio of the dark centre")
+    drying_detail: Dist = number([0.01, 0.04], 0.0, 1.0, "", "high-frequency drying texture")
+    rim_clearing_mm: Dist = number([0.1, 0.6], 0.0, 5.0, "mm", "width of the paler band along the rim")
+    translucency: Dist = number([0.0, 0.008], 0.0, 1.0, "", "fraction of light passing un-absorbed")
+
+
+class WellsConfig(Section):
+    """Which wells hold what."""
+
+    emptied: float = probability(0.01, "chance a well holds no cells (clear), so no fixed pattern is learned")
+
+
+class PlaquesConfig(Section):
+    """Plaque counts (a dilution series across columns), sizes and shapes."""
+
+    negative_plate: float = probability(0.5, "chance the plate holds no plaque at all")
+    top_count: Dist = number({"loguniform": [20, 3000]}, 0, 100000, "plaques", "mean count in the least diluted column")
+    dilution_factor: Dist = number({"choice": [10, 5, 3], "weights": [0.7, 0.2, 0.1]}, 1.0, 100.0, "",
+                                   "dilution from one column to the next")
+    reverse_series: float = probability(0.0, "chance the series runs from the last column to the first")
+    lysis_count: Dist = number([120, 300], 1, 100000, "plaques", "mean count above which a well is lysed")
+    radius_mm: Dist = number({"loguniform": [0.35, 1.5]}, 0.05, 10.0, "mm", "median plaque radius of the plate")
+    radius_spread: Dist = number([0.2, 0.45], 0.0, 2.0, "", "sd of log radius within the plate")
+    irregularity: Dist = number([0.02, 0.08], 0.0, 0.5, "", "amplitude of the outline's Fourier harmonics")
+    softness: Dist = number([0.2, 0.45], 0.0, 2.0, "", "width of the fuzzy edge, fraction of the radius")
+    clearness: Dist = number([0.95, 1.0], 0.0, 1.0, "", "fraction of stain removed inside a plaque")
+    edge_bias: Dist = number([0.0, 0.3], 0.0, 1.0, "", "tendency of plaques to lie near the well's rim")
+    max_overlap: Dist = number(1.0, 0.0, 1.0, "", "largest overlap of two plaques, fraction of the smaller radius")
+
+
+class ArtifactsConfig(Section):
+    """Scratches, marker writing, blots and debris."""
+
+    pipette_scratch: float = probability(0.85, "chance of a pipette scratch near the top of a well")
+    scratch_length_mm: Dist = number([0.8, 2.5], 0.0, 20.0, "mm", "length of a pipette scratch")
+    scratch_width_mm: Dist = number([0.2, 0.4], 0.01, 3.0, "mm", "width of a scratch")
+    extra_scratches: Dist = number([0.0, 0.3], 0.0, 10.0, "per well", "mean number of other scratches per well")
+    marker: float = probability(0.6, "chance of marker writing on the plate")
+    blots: Dist = number([0.0, 1.0], 0.0, 20.0, "per plate", "mean number of stains/smudges on the plate")
+    debris: Dist = number([0.0, 6.0], 0.0, 200.0, "per well", "mean number of dark specks per well")
+
+
+class LightingConfig(Section):
+    """Light and exposure."""
+
+    exposure_ev: Dist = number([-0.55, -0.1], -3.0, 3.0, "EV", "exposure correction")
+    color_temperature_k: Dist = number([9000, 13000], 2500, 15000, "K",
+                                       "colour temperature the camera's white balance leaves (higher: bluer)")
+    vignetting: Dist = number([0.0, 0.15], 0.0, 1.0, "", "darkening at the image corners")
+    glare: Dist = number([0.0, 0.04], 0.0, 1.0, "", "strength of a soft glare spot")
+
+
+class PostConfig(Section):
+    """Post-processing: each effect is switched on with a probability and drawn with a strength."""
+
+    brightness: float = probability(0.5, "chance of a brightness change")
+    brightness_strength: Dist = number([-0.08, 0.08], -1.0, 1.0, "", "brightness change")
+    white_balance: float = probability(0.5, "chance of a colour cast")
+    white_balance_strength: Dist = number([0.0, 0.05], 0.0, 1.0, "", "size of the colour cast")
+    clarity: float = probability(0.4, "chance of a local contrast change")
+    clarity_strength: Dist = number([-0.2, 0.3], -1.0, 1.0, "", "local contrast change")
+    motion_blur: float = probability(0.1, "chance of motion blur")
+    motion_blur_strength: Dist = number([0.5, 2.0], 0.0, 30.0, "px", "motion blur length at 1024 px width")
+    shadows: float = probability(0.3, "chance of low-frequency shadows")
+    shadows_strength: Dist = number([0.02, 0.08], 0.0, 1.0, "", "depth of the shadows")
+    chromatic_aberration: float = probability(0.3, "chance of chromatic aberration")
+    chromatic_aberration_strength: Dist = number([0.3, 1.2], 0.0, 10.0, "px", "colour shift at the corners")
+    bloom: float = probability(0.3, "chance of bloom")
+    bloom_strength: Dist = number([0.05, 0.2], 0.0, 1.0, "", "glow around bright areas")
+    sharpen: float = probability(1.0, "chance of sharpening")
+    sharpen_strength: Dist = number([1.0, 2.0], 0.0, 2.0, "", "unsharp-mask amount")
+    noise: float = probability(1.0, "chance of sensor noise")
+    noise_strength: Dist = number([1.0, 2.5], 0.0, 30.0, "levels", "noise sd in 8-bit levels")
+    jpeg: float = probability(0.9, "chance of JPEG compression")
+    jpeg_strength: Dist = number([0.05, 0.2], 0.0, 0.9, "", "1 - JPEG quality/100")
+
+
+class SceneConfig(BaseModel):
+    """Ranges and distributions of every scene parameter; :func:`platesynth.scene.sample_scene` draws a Scene."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+    name: str = Field(default="custom", description="name of the configuration (the preset's name)")
+    plate: PlateConfig = PlateConfig()
+    camera: CameraConfig = CameraConfig()
+    background: BackgroundConfig = BackgroundConfig()
+    stain: StainConfig = StainConfig()
+    wells: WellsConfig = WellsConfig()
+    plaques: PlaquesConfig = PlaquesConfig()
+    artifacts: ArtifactsConfig = ArtifactsConfig()
+    lighting: LightingConfig = LightingConfig()
+    post: PostConfig = PostConfig()
+
+
+def sections() -> dict[str, type[Section]]:
+    """The sections of :class:`SceneConfig` by name, in order."""
+    return {
+        name: field.annotation
+        for name, field in SceneConfig.model_fields.items()
+        if isinstance(field.annotation, type) and issubclass(field.annotation, Section)
+    }
+
+
+def parameter_names() -> list[str]:
+    """Every parameter's dotted name, e.g. ``plaques.radius_mm``."""
+    return [f"{s}.{p}" for s, model in sections().items() for p in model.model_fields]
+
+
+def parameter_table() -> list[dict[str, Any]]:
+    """One row per parameter: name, type, unit, range, default and description (read from the fields).
+
+    Returns
+    -------
+    list of dict
+        Keys ``name``, ``type``, ``unit``, ``range`` (``[low, high]`` or the list of options), ``default``
+        (in the form a YAML file takes), ``description``.
+    """
+    rows = []
+    for section, model in sections().items():
+        for name, field in model.model_fields.items():
+            extra = field.json_schema_extra or {}
+            default = field.default
+            rows.append(
+                {
+                    "name": f"{section}.{name}",
+                    "type": extra["kind"],
+                    "unit": extra.get("unit", ""),
+                    "range": list(extra.get("options") or extra.get("choices") or extra["bounds"]),
+                    "default": default.model_dump() if isinstance(default, BaseModel) else default,
+                    "description": field.description,
+                }
+            )
+    return rows
+
