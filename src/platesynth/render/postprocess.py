@@ -14,7 +14,7 @@ import math
 import numpy as np
 from PIL import Image
 
-from platesynth.render import _kernels as kernels
+from platesynth.render import post_kernels as kernels
 from platesynth.scene.params import PostProcessing
 
 

@@ -21,7 +21,7 @@ from typing import Any
 
 import bpy
 
-from platesynth.render._kernels import EDGE_SPAN, FRAY_AMPLITUDE, FRAY_ROWS_PER_PLAQUE, RESIDUAL_MAX, RESIDUAL_MEAN, RESIDUAL_SPREAD
+from platesynth.render.appearance import EDGE_SPAN, FRAY_AMPLITUDE, FRAY_ROWS_PER_PLAQUE, RESIDUAL_MAX, RESIDUAL_MEAN, RESIDUAL_SPREAD
 from platesynth.render.blender.inside.nodes import add, feed, link, math, output, vector_math
 from platesynth.render.textures import FIBRE_CELL_MM, FINE_CELL_MM, FUZZ_CELL_MM, RESIDUAL_CELL_MM
 

@@ -21,7 +21,7 @@ import numpy as np
 from mathutils import Matrix
 
 from platesynth.render.blender.inside import geometry, materials, plate
-from platesynth.render._kernels import FLOOR_TRANSMITTANCE, WALL_BAND_GAIN
+from platesynth.render.look import FLOOR_TRANSMITTANCE, WALL_BAND_GAIN
 from platesynth.render.raster import plate_relief, texels_per_mm
 from platesynth.render.textures import SceneTextures, plate_grid_index, scene_textures
 from platesynth.scene.params import PlateGeometry, Scene

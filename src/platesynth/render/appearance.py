@@ -1,0 +1,482 @@
+"""The appearance of a well's content, defined once, in plate millimetres: the one model both renderers draw.
+
+A well holds a stained cell monolayer. Its optical **density** at a plate point (:func:`monolayer_density`) is
+the well's density with low-frequency unevenness, an elongated darker centre, a thinner band along the rim and
+a fine drying texture; a lysed well keeps only a cloud and a network of strands; an emptied well holds nothing.
+Plaques clear the layer (:func:`draw_plaques`: the exact union of overlapping plaques, each a smooth edge
+frayed by radial fibres, with a little stain left inside), scratches scrape it off and specks add to it
+(:func:`draw_capsules`). The light passing the layer follows Beer-Lambert (:func:`stain_transmittance`).
+
+How the renderers use it:
+
+- the raster renderer evaluates these kernels at its pixel centres (:func:`draw_well_content` with the
+  camera's mapping, then :func:`monolayer_density` per pixel inside :mod:`platesynth.render.shading`);
+- the Blender backend receives :func:`floor_transmittance`, the same kernels evaluated on a plate-space texel
+  grid, as an image texture on the well floors, and lets Cycles do the light, the plastic and the camera.
+
+A new visual feature of the well content goes here and only here. Its random patterns come from the scene's
+noise textures (:mod:`platesynth.render.textures`); its variable quantities are scene parameters.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from numba import njit, prange
+
+from platesynth.errors import ParameterError
+from platesynth.render.color import srgb_to_linear
+from platesynth.render.sampling import boxes_from_extents, clip01, grid_sample, tile_sample, to_plate
+from platesynth.render.textures import FIBRE_CELL_MM, FINE_CELL_MM, FUZZ_CELL_MM, RESIDUAL_CELL_MM, SceneTextures
+from platesynth.scene.params import Scene, Well
+from platesynth.scene.sample import stain_rgb
+
+# ---- the monolayer
+CENTRE_SPREAD = 0.55
+"""The darker centre is a Gaussian this many well radii wide (before elongation)."""
+RIM_THINNING = 0.5
+"""At the rim the layer is this much thinner, recovering over ``stain.rim_clearing_mm``..."""
+RIM_REACH = 8.0
+"""...and not computed beyond this many ``rim_clearing_mm`` from the rim."""
+DRYING_GAIN = 2.0
+"""The drying texture (unit-sd fine tile) changes the density by ``DRYING_GAIN * drying_detail`` per sd."""
+
+# ---- what a lysed well keeps
+LYSED_CLOUD_CENTRE, LYSED_CLOUD_NOISE = 0.55, 0.25
+"""The cloud of remnants: weight of the well's centre gradient and of the unevenness grid (read shifted)."""
+LYSED_CLOUD_SHIFT = 17.0
+"""The cloud reads the unevenness grid this many cells to the right, so it does not echo the stain's blotches."""
+LYSED_BASE, LYSED_STRAND_SHARE, LYSED_STRANDS = 0.04, 0.6, 0.15
+"""Remnant = base + cloud * (1 - share + share * strands) + LYSED_STRANDS * strands (clipped to [0, 1])."""
+LYSED_STRAND_FINE = 0.4
+"""Strands vary along their length with the drying texture by this share."""
+LYSED_KEEP = 0.6
+"""A lysed layer keeps this share of its density where the remnant is full..."""
+LYSED_RIM_LOSS, LYSED_RIM_MM = 0.7, 1.5
+"""...and loses this much more within this distance of the rim."""
+
+# ---- plaques
+EDGE_SPAN = 1.5
+"""A plaque's clearing falls from full to none over this many edge widths, centred on its outline."""
+FRAY_AMPLITUDE = 0.2
+"""How far the fray noise (unit sd) shifts the edge's clearing ramp, as a share of the ramp."""
+FRAY_ROWS_PER_PLAQUE = 7.37
+"""Each plaque reads the fray tile this many rows further along, so that neighbours fray differently."""
+CORE_DIP, CORE_DIP_SHARPNESS = 0.02, 3.0
+"""A plaque's centre clears a little less: ``1 - CORE_DIP * exp(-SHARPNESS * (r / R)**2)``."""
+RESIDUAL_MEAN, RESIDUAL_SPREAD, RESIDUAL_MAX = 0.03, 0.03, 0.2
+"""Share of the stain left inside a cleared plaque: mean, noise amplitude (unit-sd residual tile) and cap."""
+
+# ---- marks
+SCRATCH_CLEARING = 0.95
+"""A scratch scrapes off this share of the stain under it."""
+
+WELL_DTYPE = np.dtype(
+    [
+        ("id", np.float64),
+        ("cx", np.float64),  # the well's centre (mm)
+        ("cy", np.float64),
+        ("top_cx", np.float64),  # its wall's top edge seen with parallax (mm)
+        ("top_cy", np.float64),
+        ("density", np.float64),
+        ("centre_gradient", np.float64),
+        ("centre_cos", np.float64),  # direction of the elongated centre
+        ("centre_sin", np.float64),
+        ("centre_off_x", np.float64),  # offset of the centre from the well's (mm)
+        ("centre_off_y", np.float64),
+        ("drying_detail", np.float64),
+        ("lysed", np.float64),  # 0 or 1
+        ("emptied", np.float64),  # 0 or 1
+        ("noise_x", np.float64),  # the well's shift into the periodic noise tiles (mm)
+        ("noise_y", np.float64),
+    ]
+)
+"""One row per well, in plate row-major order (:func:`well_table`)."""
+
+STAIN_DTYPE = np.dtype(
+    [
+        ("unevenness", np.float64),
+        ("unevenness_cell_mm", np.float64),
+        ("elongation", np.float64),
+        ("rim_clearing_mm", np.float64),
+        ("translucency", np.float64),
+        ("absorbance_r", np.float64),  # -log of the stain's linear colour: the absorbance at density 1
+        ("absorbance_g", np.float64),
+        ("absorbance_b", np.float64),
+    ]
+)
+"""The plate-wide stain (a one-row array, :func:`stain_table`)."""
+
+PLAQUE_DTYPE = np.dtype(
+    [
+        ("cx", np.float64),
+        ("cy", np.float64),
+        ("radius", np.float64),
+        ("edge_width", np.float64),  # softness * radius (mm)
+        ("clearness", np.float64),
+        ("well_cx", np.float64),  # the plaque's well: centre, radius and top edge (ids stay inside it)
+        ("well_cy", np.float64),
+        ("well_radius", np.float64),
+        ("top_cx", np.float64),
+        ("top_cy", np.float64),
+    ]
+)
+"""One row per plaque, in the scene's drawing order (:func:`plaque_table`)."""
+
+
+def well_table(wells: list[Well], top_centres: np.ndarray, well_offsets: np.ndarray) -> np.ndarray:
+    """The :data:`WELL_DTYPE` rows of ``wells`` (plate row-major order), their top edges' centres and noise shifts."""
+    table = np.zeros(len(wells), dtype=WELL_DTYPE)
+    for i, w in enumerate(wells):
+        angle = math.radians(w.stain.centre_angle_deg)
+        table[i] = (
+            w.id, *w.center_mm, *top_centres[i], w.stain.density, w.stain.centre_gradient, math.cos(angle),
+            math.sin(angle), *w.stain.centre_offset_mm, w.stain.drying_detail, float(w.lysed), float(w.emptied),
+            *well_offsets[i],
+        )
+    return table
+
+
+def stain_table(scene: Scene, textures: SceneTextures) -> np.ndarray:
+    """The scene's plate-wide stain as a one-row :data:`STAIN_DTYPE` array."""
+    stain = scene.stain
+    absorbance = -np.log(np.clip(srgb_to_linear(stain_rgb(stain)), 1e-3, 1.0))
+    table = np.zeros(1, dtype=STAIN_DTYPE)
+    table[0] = (stain.unevenness, textures.low_cell_mm, stain.centre_elongation, stain.rim_clearing_mm,
+                stain.translucency, *absorbance)
+    return table
+
+
+def plaque_table(scene: Scene, wells: list[Well], top_centres: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The scene's plaques as :data:`PLAQUE_DTYPE` rows and their outline harmonics ``(n, k, 2)`` (k + 2)."""
+    index_of_well = {w.id: i for i, w in enumerate(wells)}
+    table = np.zeros(len(scene.plaques), dtype=PLAQUE_DTYPE)
+    for i, p in enumerate(scene.plaques):
+        k = index_of_well.get(p.well)
+        if k is None:
+            raise ParameterError(f"plaque {p.id} lies in well {p.well}, which the scene does not have")
+        w = wells[k]
+        table[i] = (*p.center_mm, p.radius_mm, p.softness * p.radius_mm, p.clearness, *w.center_mm,
+                    scene.plate.well_radius_mm, *top_centres[k])
+    n_harmonics = max(1, max((len(p.fourier) for p in scene.plaques), default=1))
+    fourier = np.zeros((len(scene.plaques), n_harmonics, 2), dtype=np.float64)
+    for i, p in enumerate(scene.plaques):
+        if p.fourier:
+            fourier[i, : len(p.fourier)] = p.fourier
+    return table, fourier
+
+
+@njit(cache=True, nogil=True, inline="always")
+def well_at(u, v, a1x, a1y, pitch, rows, cols):
+    """Row-major index of the well whose grid cell holds the plate point ``(u, v)`` (clamped to the grid)."""
+    col = min(max(math.floor((u - a1x) / pitch + 0.5), 0.0), cols - 1.0)
+    row = min(max(math.floor((v - a1y) / pitch + 0.5), 0.0), rows - 1.0)
+    return int(row) * cols + int(col)
+
+
+@njit(cache=True, nogil=True, inline="always")
+def monolayer_density(u, v, du, dv, dist, radius, well, stain, low_grid, fibre_grid, fine_tile):
+    """Density of the intact (or lysed) monolayer of ``well`` at plate point ``(u, v)``, ``(du, dv)`` from the
+    well's centre at distance ``dist``; before plaques and marks."""
+    low_cell = stain.unevenness_cell_mm
+    density = well.density * (1.0 + stain.unevenness * grid_sample(low_grid, u / low_cell, v / low_cell))
+    spread = CENTRE_SPREAD * radius
+    sqrt_el = math.sqrt(stain.elongation)
+    cu = du - well.centre_off_x
+    cv = dv - well.centre_off_y
+    along = (cu * well.centre_cos + cv * well.centre_sin) / (spread * sqrt_el)
+    across = (-cu * well.centre_sin + cv * well.centre_cos) * sqrt_el / spread
+    gradient = math.exp(-(along * along + across * across))
+    density *= 1.0 + well.centre_gradient * gradient
+    rim_clearing = stain.rim_clearing_mm
+    if rim_clearing > 0.0 and radius - dist < RIM_REACH * rim_clearing:
+        density *= 1.0 - RIM_THINNING * math.exp(-max(radius - dist, 0.0) / rim_clearing)
+    fine = tile_sample(fine_tile, (u + well.noise_x) / FINE_CELL_MM, (v + well.noise_y) / FINE_CELL_MM)
+    density *= max(1.0 + DRYING_GAIN * well.drying_detail * fine, 0.0)
+    if well.lysed > 0.5:
+        # what is left of a lysed layer: a cloud around the centre and a network of strands
+        fibre = grid_sample(fibre_grid, u / FIBRE_CELL_MM, v / FIBRE_CELL_MM)
+        strands = (1.0 - min(abs(fibre), 1.0)) ** 2 * (1.0 - LYSED_STRAND_FINE + LYSED_STRAND_FINE * fine)
+        cloud = LYSED_CLOUD_CENTRE * gradient + LYSED_CLOUD_NOISE * grid_sample(
+            low_grid, u / low_cell + LYSED_CLOUD_SHIFT, v / low_cell)
+        remnant = clip01(LYSED_BASE + cloud * (1.0 - LYSED_STRAND_SHARE + LYSED_STRAND_SHARE * strands)
+                         + LYSED_STRANDS * strands)
+        density *= LYSED_KEEP * remnant * (1.0 - LYSED_RIM_LOSS * math.exp(-max(radius - dist, 0.0) / LYSED_RIM_MM))
+    return density
+
+
+@njit(cache=True, nogil=True, inline="always")
+def changed_density(density, u, v, well, clearing, scratched, speck, residual_tile):
+    """``density`` cleared by plaques (``clearing`` 0..1, with the residual stain left inside), scraped by
+    scratches (``scratched`` 0..1) and darkened by specks (``speck``, added density)."""
+    if clearing > 0.0:
+        residual = tile_sample(residual_tile, (u + well.noise_y) / RESIDUAL_CELL_MM, (v + well.noise_x) / RESIDUAL_CELL_MM)
+        residual = min(max(RESIDUAL_MEAN + RESIDUAL_SPREAD * residual, 0.0), RESIDUAL_MAX)
+        density *= 1.0 - clearing * (1.0 - residual)
+    return density * (1.0 - scratched) + speck
+
+
+@njit(cache=True, nogil=True, inline="always")
+def stain_transmittance(density, stain):
+    """Linear RGB transmittance of a layer of ``density`` (Beer-Lambert; the translucent share passes)."""
+    t = stain.translucency
+    return (
+        t + (1.0 - t) * math.exp(-density * stain.absorbance_r),
+        t + (1.0 - t) * math.exp(-density * stain.absorbance_g),
+        t + (1.0 - t) * math.exp(-density * stain.absorbance_b),
+    )
+
+
+@njit(cache=True, nogil=True)
+def draw_plaques(hinv, plaques, fourier, boxes, pixel_mm, from_below, top_radius, fuzz_tile, clear, ids):
+    """Draw plaques in order (later ones on top).
+
+    ``plaques``: :data:`PLAQUE_DTYPE` rows (mm); ``fourier[p, k] = (a, b)`` for harmonic ``k + 2``. ``clear``
+    (float32) receives the union of the plaques' clearing (0..1): a fuzzy edge centred on the outline, frayed by
+    ``fuzz_tile`` noise, and a slightly less cleared centre. ``ids`` (uint16) receives ``p + 1`` where the pixel
+    centre lies inside plaque ``p``'s outline and inside the visible interior of its well.
+    """
+    n_harmonics = fourier.shape[1]
+    for p in range(plaques.shape[0]):
+        plaque = plaques[p]
+        cx, cy, radius, edge, clearness = plaque.cx, plaque.cy, plaque.radius, plaque.edge_width, plaque.clearness
+        amplitude = 0.0
+        for k in range(n_harmonics):
+            amplitude += abs(fourier[p, k, 0]) + abs(fourier[p, k, 1])
+        width = max(edge, pixel_mm)
+        reach = radius * (1.0 + amplitude) + EDGE_SPAN * width
+        noise_dx = FRAY_ROWS_PER_PLAQUE * p
+        y0, y1, x0, x1 = boxes[p, 0], boxes[p, 1], boxes[p, 2], boxes[p, 3]
+        for y in range(y0, y1):
+            for x in range(x0, x1):
+                u, v = to_plate(hinv, x + 0.5, y + 0.5)
+                du = u - cx
+                dv = v - cy
+                dist = math.sqrt(du * du + dv * dv)
+                if dist > reach:
+                    continue
+                outline = 1.0
+                if dist > 0.0:
+                    cos1 = du / dist
+                    sin1 = dv / dist
+                    cos_k = cos1 * cos1 - sin1 * sin1  # harmonic 2
+                    sin_k = 2.0 * sin1 * cos1
+                    for k in range(n_harmonics):
+                        outline += fourier[p, k, 0] * cos_k + fourier[p, k, 1] * sin_k
+                        cos_k, sin_k = cos_k * cos1 - sin_k * sin1, sin_k * cos1 + cos_k * sin1
+                signed = dist - radius * outline
+                if signed < 0.0:
+                    wu = u - plaque.well_cx
+                    wv = v - plaque.well_cy
+                    in_well = wu * wu + wv * wv < plaque.well_radius * plaque.well_radius
+                    if in_well and not from_below:
+                        tu = u - plaque.top_cx
+                        tv = v - plaque.top_cy
+                        in_well = tu * tu + tv * tv < top_radius * top_radius
+                    if in_well:
+                        ids[y, x] = p + 1
+                # radial fibres: noise that varies quickly around the plaque and slowly along its radius
+                around = math.atan2(dv, du) * (fuzz_tile.shape[1] / (2.0 * math.pi))
+                fray = tile_sample(fuzz_tile, around, dist / FUZZ_CELL_MM + noise_dx)
+                t = 0.5 - signed / (EDGE_SPAN * width) + FRAY_AMPLITUDE * fray
+                if t <= 0.0:
+                    continue
+                if t > 1.0:
+                    t = 1.0
+                inner = dist / (radius * outline)
+                c = clearness * t * t * (3.0 - 2.0 * t) * (1.0 - CORE_DIP * math.exp(-CORE_DIP_SHARPNESS * inner * inner))
+                clear[y, x] = 1.0 - (1.0 - clear[y, x]) * (1.0 - c)
+
+
+@njit(cache=True, nogil=True)
+def draw_capsules(hinv, segments, values, boxes, pixel_mm, out):
+    """Max-combine anti-aliased capsules (thick line segments) into ``out``.
+
+    ``segments[s] = (x0, y0, x1, y1, half_width)`` in mm; ``values[s]`` the value at full coverage.
+    """
+    for s in range(segments.shape[0]):
+        ax, ay, bx, by, half = segments[s, 0], segments[s, 1], segments[s, 2], segments[s, 3], segments[s, 4]
+        ex = bx - ax
+        ey = by - ay
+        length2 = ex * ex + ey * ey
+        value = values[s]
+        y0, y1, x0, x1 = boxes[s, 0], boxes[s, 1], boxes[s, 2], boxes[s, 3]
+        for y in range(y0, y1):
+            for x in range(x0, x1):
+                u, v = to_plate(hinv, x + 0.5, y + 0.5)
+                px = u - ax
+                py = v - ay
+                t = 0.0
+                if length2 > 0.0:
+                    t = min(max((px * ex + py * ey) / length2, 0.0), 1.0)
+                dx = px - t * ex
+                dy = py - t * ey
+                thin = min(1.0, 2.0 * half / pixel_mm)  # lines thinner than a pixel fade instead of vanishing
+                coverage = 0.5 - (math.sqrt(dx * dx + dy * dy) - max(half, 0.5 * pixel_mm)) / pixel_mm
+                if coverage <= 0.0:
+                    continue
+                coverage = min(coverage, 1.0) * thin * value
+                if coverage > out[y, x]:
+                    out[y, x] = coverage
+
+
+class Sampling:
+    """Where a renderer evaluates the well content: an image of ``width`` x ``height`` points whose centres
+    ``(x + 0.5, y + 0.5)`` map to plate millimetres by ``px_to_plate`` (and back by ``plate_to_px``).
+
+    The raster renderer's camera view (:class:`platesynth.render.camera.View`) is one; :func:`texel_grid` gives
+    the plate-space texture grid of the Blender backend.
+    """
+
+    width: int
+    height: int
+    px_to_plate: np.ndarray
+    px_per_mm: float
+
+    def project(self, points_mm: np.ndarray) -> np.ndarray:  # pragma: no cover - the protocol's signature
+        raise NotImplementedError
+
+
+@dataclass(frozen=True)
+class TexelGrid(Sampling):
+    """A texture covering the plate from its corner at ``px_per_mm`` texels per mm (texel (0, 0) covers
+    [0, 1/k) x [0, 1/k) mm; row 0 at plate y = 0)."""
+
+    width: int
+    height: int
+    px_per_mm: float
+
+    @property
+    def px_to_plate(self) -> np.ndarray:
+        return np.diag([1.0 / self.px_per_mm, 1.0 / self.px_per_mm, 1.0])
+
+    def project(self, points_mm: np.ndarray) -> np.ndarray:
+        return np.asarray(points_mm, dtype=np.float64) * self.px_per_mm
+
+
+def texel_grid(scene: Scene, texels_per_mm: float) -> TexelGrid:
+    """The plate-space texel grid over ``scene``'s plate at ``texels_per_mm``."""
+    plate = scene.plate
+    return TexelGrid(width=int(math.ceil(plate.length_mm * texels_per_mm)),
+                     height=int(math.ceil(plate.width_mm * texels_per_mm)), px_per_mm=float(texels_per_mm))
+
+
+@dataclass(frozen=True)
+class WellContent:
+    """What plaques and marks do to the monolayer, at every point of a :class:`Sampling` grid.
+
+    Attributes
+    ----------
+    clearing : (H, W) float32, the union of the plaques' clearing (0..1).
+    plaque_ids : (H, W) uint16, ``p + 1`` inside plaque ``p``'s outline (scene order; later plaques on top).
+    scratched : (H, W) float32, the share of the stain scraped off by scratches.
+    specks : (H, W) float32, the density added by dark specks.
+    """
+
+    clearing: np.ndarray
+    plaque_ids: np.ndarray
+    scratched: np.ndarray
+    specks: np.ndarray
+
+
+def draw_well_content(
+    scene: Scene,
+    grid: Sampling,
+    wells: list[Well],
+    top_centres: np.ndarray,
+    top_radius: float,
+    textures: SceneTextures,
+) -> WellContent:
+    """Draw the plaques, scratches and specks of ``scene`` on ``grid`` (wells in plate row-major order, their
+    walls' top edges at ``top_centres`` with ``top_radius``, for the plaque ids seen from above)."""
+    shape = (grid.height, grid.width)
+    content = WellContent(np.zeros(shape, np.float32), np.zeros(shape, np.uint16), np.zeros(shape, np.float32),
+                          np.zeros(shape, np.float32))
+    pixel_mm = 1.0 / grid.px_per_mm
+    if scene.plaques:
+        plaques, fourier = plaque_table(scene, wells, top_centres)
+        reach = plaques["radius"] * (1.0 + np.abs(fourier).sum(axis=(1, 2))) + EDGE_SPAN * np.maximum(
+            plaques["edge_width"], pixel_mm) + pixel_mm
+        centres = np.stack([plaques["cx"], plaques["cy"]], axis=1)
+        signs = np.array([[-1, -1], [1, -1], [1, 1], [-1, 1]], dtype=np.float64)
+        corners = centres[:, None, :] + signs[None] * reach[:, None, None]
+        boxes = boxes_from_extents(grid.project(corners), grid.height, grid.width)
+        draw_plaques(grid.px_to_plate, plaques, fourier, boxes, pixel_mm, scene.camera.from_below, top_radius,
+                     textures.fine_tile, content.clearing, content.plaque_ids)
+    art = scene.artifacts
+    segments = [(*a, *b, 0.5 * s.width_mm) for s in art.scratches for a, b in zip(s.points_mm[:-1], s.points_mm[1:])]
+    if segments:
+        _capsules(grid, np.array(segments), np.full(len(segments), SCRATCH_CLEARING), content.scratched)
+    if art.debris:
+        rows, values = [], []
+        for d in art.debris:
+            half = 0.5 * max(d.length_mm - d.width_mm, 0.0)
+            ca, sa = math.cos(math.radians(d.angle_deg)), math.sin(math.radians(d.angle_deg))
+            cx, cy = d.center_mm
+            rows.append((cx - half * ca, cy - half * sa, cx + half * ca, cy + half * sa, 0.5 * d.width_mm))
+            values.append(d.darkness)
+        _capsules(grid, np.array(rows), np.array(values), content.specks)
+    return content
+
+
+def _capsules(grid: Sampling, segments: np.ndarray, values: np.ndarray, out: np.ndarray) -> None:
+    pixel_mm = 1.0 / grid.px_per_mm
+    ends = segments[:, :4].reshape(-1, 2, 2)
+    reach = segments[:, 4] + pixel_mm
+    lo = ends.min(axis=1) - reach[:, None]
+    hi = ends.max(axis=1) + reach[:, None]
+    corners = np.stack([lo, np.stack([hi[:, 0], lo[:, 1]], 1), hi, np.stack([lo[:, 0], hi[:, 1]], 1)], axis=1)
+    boxes = boxes_from_extents(grid.project(corners), grid.height, grid.width)
+    draw_capsules(grid.px_to_plate, segments.astype(np.float64), values.astype(np.float32), boxes, pixel_mm, out)
+
+
+@njit(cache=True, nogil=True, parallel=True, fastmath=True)
+def _bake_floor(texel_mm, a1x, a1y, pitch, rows, cols, radius, wells, stain, low_grid, fibre_grid, fine_tile,
+                residual_tile, clearing, scratched, specks, out):
+    height, width = out.shape[0], out.shape[1]
+    margin = 2.0 * texel_mm
+    for y in prange(height):
+        st = stain[0]  # records are read inside the parallel loop (numba cannot pass them into it)
+        for x in range(width):
+            u = (x + 0.5) * texel_mm
+            v = (y + 0.5) * texel_mm
+            k = well_at(u, v, a1x, a1y, pitch, rows, cols)
+            well = wells[k]
+            du = u - well.cx
+            dv = v - well.cy
+            dist = math.sqrt(du * du + dv * dv)
+            if dist > radius + margin or well.emptied > 0.5:
+                out[y, x, 0] = 1.0
+                out[y, x, 1] = 1.0
+                out[y, x, 2] = 1.0
+                continue
+            density = monolayer_density(u, v, du, dv, dist, radius, well, st, low_grid, fibre_grid, fine_tile)
+            density = changed_density(density, u, v, well, clearing[y, x], scratched[y, x], specks[y, x], residual_tile)
+            r, g, b = stain_transmittance(density, st)
+            out[y, x, 0] = r
+            out[y, x, 1] = g
+            out[y, x, 2] = b
+
+
+def fibre_grid_or_empty(textures: SceneTextures) -> np.ndarray:
+    """The lysed wells' strands, or a 2 x 2 zero grid where no well is lysed (the kernels need an array)."""
+    return textures.fibre_grid if textures.fibre_grid is not None else np.zeros((2, 2), dtype=np.float32)
+
+
+def floor_transmittance(
+    scene: Scene, texels_per_mm: float, wells: list[Well], top_centres: np.ndarray, textures: SceneTextures,
+    well_offsets: np.ndarray,
+) -> np.ndarray:
+    """The monolayer's linear RGB transmittance on a plate-space texel grid (:func:`texel_grid`): float32
+    ``(H, W, 3)``, 1 outside the wells. The Blender backend's well floors show this texture."""
+    grid = texel_grid(scene, texels_per_mm)
+    plate = scene.plate
+    content = draw_well_content(scene, grid, wells, top_centres, plate.well_radius_mm + 1.0, textures)
+    out = np.empty((grid.height, grid.width, 3), dtype=np.float32)
+    _bake_floor(1.0 / grid.px_per_mm, plate.a1_x_mm, plate.a1_y_mm, plate.pitch_mm, plate.rows, plate.cols,
+                plate.well_radius_mm, well_table(wells, top_centres, well_offsets), stain_table(scene, textures),
+                textures.low_grid, fibre_grid_or_empty(textures), textures.fine_tile, textures.residual_tile,
+                content.clearing, content.scratched, content.specks, out)
+    return out
