@@ -13,6 +13,7 @@ from platesynth.cli import app
 from platesynth.errors import ParameterError
 from platesynth.scene import (
     Dist,
+    DistVector,
     Scene,
     SceneConfig,
     dump_config,
@@ -154,6 +155,11 @@ def test_max_overlap_zero_keeps_plaques_apart():
         ({"camera.plate_fill": {"mixture": [[1.1, 1.2], [0.9]]}}, ["camera.plate_fill", "[low, high] ranges"]),
         ({"camera.plate_fill": {"mixture": [[1.1, 1.2], [0.9, 3.0]]}}, ["camera.plate_fill", "3 is out of range"]),
         ({"plaques.radius_mm": {"loguniform": [0.0, 1.0]}}, ["plaques.radius_mm", "low > 0"]),
+        ({"artifacts.marker_strokes": {"integers": [1, 2.5]}}, ["artifacts.marker_strokes", "whole numbers"]),
+        ({"artifacts.blot_rgb": [0.5, 0.5]}, ["artifacts.blot_rgb", "expected 3 components, got 2"]),
+        ({"artifacts.blot_rgb": 0.5}, ["artifacts.blot_rgb", "one value per component"]),
+        ({"artifacts.blot_rgb": [0.5, [0.2, 1.4], 0.5]}, ["artifacts.blot_rgb", "1.4 is out of range", "[0, 1]"]),
+        ({"plaques.max_radius": 1.5}, ["plaques.max_radius", "[0.05, 1]"]),
     ],
 )
 def test_invalid_values_are_refused_with_a_clear_message(overrides, fragments):
@@ -208,6 +214,11 @@ def test_distributions_sample_within_their_support():
     assert max(normal) == 10.0 and min(normal) >= 0.0
     choice = Dist.model_validate({"choice": [6, 96], "weights": [0, 1]})
     assert {choice.sample(rng, (6, 96), integer=True) for _ in range(20)} == {96}
+    whole = {Dist.model_validate({"integers": [1, 3]}).sample(rng, bounds) for _ in range(100)}
+    assert whole == {1.0, 2.0, 3.0}
+    vector = DistVector.model_validate([[0.2, 0.3], 5, {"normal": [1, 0]}])
+    assert vector.sample(rng, bounds)[1:] == (5.0, 1.0) and 0.2 <= vector.sample(rng, bounds)[0] <= 0.3
+    assert DistVector.model_validate(vector.model_dump()) == vector
     mixture = Dist.model_validate({"mixture": [[1, 2], [5, 6]], "weights": [1, 3]})
     drawn = np.array([mixture.sample(rng, bounds) for _ in range(400)])
     assert np.all(((drawn >= 1) & (drawn <= 2)) | ((drawn >= 5) & (drawn <= 6)))
@@ -227,6 +238,53 @@ def test_parameter_table_is_complete_and_generated_from_the_model():
     assert radius["unit"] == "mm" and radius["range"] == [0.05, 10.0]
     defaults = {row["name"]: row["default"] for row in table}
     assert SceneConfig().plaques.radius_mm == Dist.model_validate(defaults["plaques.radius_mm"])
+
+
+def test_per_object_ranges_are_parameters():
+    """The ranges of each well, plaque and mark are catalogue parameters: setting them shows in the scene."""
+    names = set(parameter_names())
+    assert {"artifacts.debris_length_mm", "artifacts.blot_rgb", "artifacts.marker_strokes", "plaques.softness_factor",
+            "plaques.count_jitter", "stain.centre_gradient_factor", "background.frame_mm", "lighting.glare_radius"} <= names
+    overrides = {
+        "plaques.negative_plate": 0.0, "plaques.softness": 0.3, "plaques.softness_factor": 1.0,
+        "plaques.clearness": 0.8, "plaques.clearness_factor": [1.1, 1.2], "plaques.max_radius": 0.1,
+        "plaques.count_jitter": 0.0,
+        "artifacts.debris": 3.0, "artifacts.debris_length_mm": 0.3, "artifacts.debris_width_factor": 0.5,
+        "artifacts.debris_darkness": 1.5, "artifacts.marker": 1.0, "artifacts.marker_strokes": 3,
+        "artifacts.marker_ink_rgb": [0.1, 0.2, 0.3], "artifacts.blots": 5.0, "artifacts.blot_rgb": [0.4, 0.5, 0.6],
+        "artifacts.blot_radius_mm": 2.0, "artifacts.blot_opacity": 0.25,
+        "stain.centre_gradient": 0.1, "stain.centre_gradient_factor": 1.0, "stain.drying_detail": 0.02,
+        "stain.drying_detail_factor": 1.0, "stain.centre_offset": 0.0,
+        "background.frame_mm": 7.0, "background.desk_warmth": 0.0, "background.desk_gray": 0.1,
+        "lighting.glare_position": [0.25, 0.75], "lighting.glare_radius": 0.3,
+    }
+    scene = sample_scene(load_config("high", overrides=overrides), 4)
+    assert scene.plaques and all(p.softness == 0.3 and 0.88 <= p.clearness <= 0.96 for p in scene.plaques)
+    assert all(p.radius_mm <= 0.1 * scene.plate.well_radius_mm + 1e-9 for p in scene.plaques)
+    assert scene.artifacts.debris and all(
+        (d.length_mm, d.width_mm, d.darkness) == (0.3, 0.15, 1.5) for d in scene.artifacts.debris
+    )
+    assert len(scene.artifacts.marker) == 3 and all(m.color_rgb == (0.1, 0.2, 0.3) for m in scene.artifacts.marker)
+    assert scene.artifacts.blots and all(
+        (b.color_rgb, b.radius_mm, b.opacity) == ((0.4, 0.5, 0.6), 2.0, 0.25) for b in scene.artifacts.blots
+    )
+    assert all(
+        w.stain.centre_gradient == 0.1 and w.stain.drying_detail == 0.02 and w.stain.centre_offset_mm == (0.0, 0.0)
+        for w in scene.wells
+    )
+    assert scene.background.frame_mm == 7.0 and scene.background.color_rgb == (0.1, 0.1, 0.1)
+    assert scene.lighting.glare_center == (0.25, 0.75) and scene.lighting.glare_radius == 0.3
+
+
+def test_panel_orientation_and_side_are_parameters():
+    base = {"background.panel_margin_x_mm": 50, "background.panel_margin_y_mm": 0}
+    upright = sample_scene(load_config("high", overrides={**base, "background.panel_portrait": 1.0,
+                                                           "background.panel_left": 1.0}), 1).background.panel_mm
+    across = sample_scene(load_config("high", overrides={**base, "background.panel_portrait": 0.0,
+                                                          "background.panel_left": 0.0}), 1).background.panel_mm
+    assert upright[2] - upright[0] == pytest.approx(227.76) and upright[3] - upright[1] == pytest.approx(300.0)
+    assert upright[0] == pytest.approx(-127.76 / 2 - 50)  # the plate near the panel's left edge
+    assert across[2] - across[0] == pytest.approx(300.0) and across[2] == pytest.approx(127.76 / 2 + 50)
 
 
 def test_load_scene_reports_bad_files(tmp_path):

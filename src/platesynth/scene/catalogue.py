@@ -3,8 +3,9 @@
 Each parameter is a field of a :class:`Section` of :class:`SceneConfig`, declared with
 :func:`~platesynth.scene.distributions.number`, :func:`~platesynth.scene.distributions.probability` or
 :func:`~platesynth.scene.distributions.category`: its name, kind, unit, valid range, default and a one-line
-description. :func:`parameter_table` reads them for ``platesynth scene params`` and the docs;
-:mod:`platesynth.scene.sample` draws them (:meth:`Section.draw`).
+description. Most parameters are drawn once per plate; those whose description starts with "each" are drawn
+again for every well, plaque, scratch, speck or blot. :func:`parameter_table` reads them for
+``platesynth scene params`` and the docs; :mod:`platesynth.scene.sample` draws them (:meth:`Section.draw`).
 """
 
 from __future__ import annotations
@@ -14,7 +15,16 @@ from typing import Any
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, ValidationInfo, field_validator
 
-from platesynth.scene.distributions import Categorical, Dist, category, check_value, draw_value, number, probability
+from platesynth.scene.distributions import (
+    Categorical,
+    Dist,
+    DistVector,
+    category,
+    check_value,
+    draw_value,
+    number,
+    probability,
+)
 
 
 class Section(BaseModel):
@@ -73,6 +83,11 @@ class BackgroundConfig(Section):
     panel_margin_y_mm: Dist = number([-5, 3], -50, 300, "mm",
                                      "distance from the plate's top/bottom to the nearest edge of the light panel")
     panel_below: float = probability(0.85, "chance the nearest panel edge lies below the plate (else above)")
+    panel_portrait: float = probability(0.7, "chance the light panel stands upright (portrait) rather than across")
+    panel_left: float = probability(0.6, "chance the plate lies near the panel's left side edge (else its right)")
+    frame_mm: Dist = number([0.0, 15.0], 0.0, 100.0, "mm", "width of the light box's frame around the panel")
+    desk_warmth: Dist = number([-0.03, 0.06], -0.5, 0.5, "",
+                               "warmth of the desk: red raised and blue lowered by this fraction of its grey")
 
 
 class StainConfig(Section):
@@ -90,6 +105,10 @@ class StainConfig(Section):
     drying_detail: Dist = number([0.01, 0.04], 0.0, 1.0, "", "high-frequency drying texture")
     rim_clearing_mm: Dist = number([0.1, 0.6], 0.0, 5.0, "mm", "width of the paler band along the rim")
     translucency: Dist = number([0.0, 0.008], 0.0, 1.0, "", "fraction of light passing un-absorbed")
+    centre_gradient_factor: Dist = number([0.5, 1.0], 0.0, 2.0, "", "each well's factor on centre_gradient")
+    centre_offset: Dist = number(0.15, 0.0, 1.0, "",
+                                 "sd of a dark centre's offset from the well centre, per axis, fraction of its radius")
+    drying_detail_factor: Dist = number([0.7, 1.0], 0.0, 2.0, "", "each well's factor on drying_detail")
 
 
 class WellsConfig(Section):
@@ -114,6 +133,13 @@ class PlaquesConfig(Section):
     clearness: Dist = number([0.95, 1.0], 0.0, 1.0, "", "fraction of stain removed inside a plaque")
     edge_bias: Dist = number([0.0, 0.3], 0.0, 1.0, "", "tendency of plaques to lie near the well's rim")
     max_overlap: Dist = number(1.0, 0.0, 1.0, "", "largest overlap of two plaques, fraction of the smaller radius")
+    count_jitter: Dist = number(0.15, 0.0, 3.0, "",
+                                "sd of the log of a well's mean count around the dilution series (pipetting error)")
+    max_radius: Dist = number(0.5, 0.05, 1.0, "", "largest plaque radius, fraction of the well's radius")
+    harmonic_decay: Dist = number(1.2, 0.0, 4.0, "",
+                                  "fall-off of the outline harmonics: amplitude of order k is irregularity / k^decay")
+    softness_factor: Dist = number([0.8, 1.25], 0.0, 5.0, "", "each plaque's factor on softness")
+    clearness_factor: Dist = number([0.9, 1.1], 0.0, 5.0, "", "each plaque's factor on clearness (capped at 1)")
 
 
 class ArtifactsConfig(Section):
@@ -122,10 +148,28 @@ class ArtifactsConfig(Section):
     pipette_scratch: float = probability(0.85, "chance of a pipette scratch near the top of a well")
     scratch_length_mm: Dist = number([0.8, 2.5], 0.0, 20.0, "mm", "length of a pipette scratch")
     scratch_width_mm: Dist = number([0.2, 0.4], 0.01, 3.0, "mm", "width of a scratch")
+    pipette_length_factor: Dist = number([0.6, 1.3], 0.0, 5.0, "", "each pipette scratch's factor on scratch_length_mm")
+    pipette_width_factor: Dist = number([0.8, 1.2], 0.0, 5.0, "", "each pipette scratch's factor on scratch_width_mm")
+    pipette_bend: Dist = number({"normal": [0.0, 0.35]}, -5.0, 5.0, "",
+                                "each pipette scratch's sideways bend at its end (a hook), fraction of its length")
     extra_scratches: Dist = number([0.0, 0.3], 0.0, 10.0, "per well", "mean number of other scratches per well")
+    scratch_length_factor: Dist = number([0.3, 1.0], 0.0, 5.0, "", "each other scratch's factor on scratch_length_mm")
+    scratch_width_factor: Dist = number([0.5, 1.0], 0.0, 5.0, "", "each other scratch's factor on scratch_width_mm")
     marker: float = probability(0.6, "chance of marker writing on the plate")
+    marker_strokes: Dist = number({"integers": [1, 3]}, 1, 20, "strokes", "number of pen strokes", integer=True)
+    marker_size_mm: Dist = number([3.0, 7.0], 0.5, 40.0, "mm", "length of a pen stroke (strokes stand 0.6 of it apart)")
+    marker_width_mm: Dist = number([0.35, 0.7], 0.05, 5.0, "mm", "width of the pen")
+    marker_ink_rgb: DistVector = number([[0.0, 0.15], [0.2, 0.45], [0.5, 0.85]], 0.0, 1.0, "RGB",
+                                        "ink colour, one value per channel (R, G, B)", size=3)
     blots: Dist = number([0.0, 1.0], 0.0, 20.0, "per plate", "mean number of stains/smudges on the plate")
+    blot_radius_mm: Dist = number([0.5, 4.0], 0.05, 50.0, "mm", "each blot's radius")
+    blot_rgb: DistVector = number([[0.3, 0.7], [0.2, 0.6], [0.3, 0.8]], 0.0, 1.0, "RGB",
+                                  "each blot's colour, one value per channel (R, G, B)", size=3)
+    blot_opacity: Dist = number([0.05, 0.3], 0.0, 1.0, "", "each blot's opacity at its centre")
     debris: Dist = number([0.0, 6.0], 0.0, 200.0, "per well", "mean number of dark specks per well")
+    debris_length_mm: Dist = number([0.08, 0.5], 0.01, 10.0, "mm", "each speck's length")
+    debris_width_factor: Dist = number([0.2, 0.7], 0.01, 1.0, "", "each speck's width, fraction of its length")
+    debris_darkness: Dist = number([0.5, 2.5], 0.0, 10.0, "", "each speck's added stain density")
 
 
 class LightingConfig(Section):
@@ -136,6 +180,9 @@ class LightingConfig(Section):
                                        "colour temperature the camera's white balance leaves (higher: bluer)")
     vignetting: Dist = number([0.0, 0.15], 0.0, 1.0, "", "darkening at the image corners")
     glare: Dist = number([0.0, 0.04], 0.0, 1.0, "", "strength of a soft glare spot")
+    glare_position: DistVector = number([[0.0, 1.0], [0.0, 1.0]], 0.0, 1.0, "image",
+                                        "centre of the glare spot, image fractions (x, y)", size=2)
+    glare_radius: Dist = number([0.1, 0.4], 0.01, 2.0, "", "radius of the glare spot, fraction of the image diagonal")
 
 
 class PostConfig(Section):

@@ -5,8 +5,12 @@ A numeric parameter's value (a :class:`Dist`) is
 * a number: always that value;
 * ``[low, high]``: uniform between the two;
 * ``{loguniform: [low, high]}``, ``{normal: [mean, sd]}`` (clipped to the valid range),
+  ``{integers: [low, high]}`` (a whole number from low to high, both included),
   ``{choice: [a, b, ...], weights: [...]}`` or ``{mixture: [[low, high], [low, high], ...], weights: [...]}``
   (uniform within one of several ranges).
+
+A vector parameter (a colour, a position; a :class:`DistVector`) is a list with one such value per component,
+e.g. ``[[0.3, 0.7], [0.2, 0.6], 0.5]`` for R, G and B.
 
 A probability is a number in [0, 1]; a category (a :class:`Categorical`) is a name or a mapping ``{name: weight}``.
 
@@ -24,7 +28,7 @@ from typing import Any, Literal
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, model_serializer, model_validator
 
-_DIST_KINDS = ("uniform", "loguniform", "normal", "choice", "mixture")
+_DIST_KINDS = ("uniform", "loguniform", "normal", "integers", "choice", "mixture")
 
 
 def _is_number(value: Any) -> bool:
@@ -40,14 +44,14 @@ class Dist(BaseModel):
 
     Attributes
     ----------
-    kind : ``const``, ``uniform``, ``loguniform``, ``normal``, ``choice`` or ``mixture``.
+    kind : ``const``, ``uniform``, ``loguniform``, ``normal``, ``integers``, ``choice`` or ``mixture``.
     values : the numbers of the form (a mixture: low and high of each range in turn).
     weights : the options' weights (``choice`` and ``mixture`` only); ``None`` for equal weights.
     """
 
     model_config = ConfigDict(frozen=True, extra="forbid")
 
-    kind: Literal["const", "uniform", "loguniform", "normal", "choice", "mixture"]
+    kind: Literal["const", "uniform", "loguniform", "normal", "integers", "choice", "mixture"]
     values: tuple[float, ...]  # mixture: low, high of each range in turn
     weights: tuple[float, ...] | None = None
 
@@ -92,9 +96,11 @@ class Dist(BaseModel):
         n = len(self.values)
         if self.kind == "const" and n != 1:
             raise ValueError("a constant has one value")
-        if self.kind in ("uniform", "loguniform", "normal") and n != 2:
+        if self.kind in ("uniform", "loguniform", "normal", "integers") and n != 2:
             raise ValueError(f"{self.kind} needs two numbers")
-        if self.kind in ("uniform", "loguniform", "mixture"):
+        if self.kind == "integers" and not all(v.is_integer() for v in self.values):
+            raise ValueError(f"integers needs two whole numbers, got {list(self.values)}")
+        if self.kind in ("uniform", "loguniform", "integers", "mixture"):
             if n % 2 or any(lo > hi for lo, hi in zip(self.values[::2], self.values[1::2])):
                 raise ValueError(f"each range needs low <= high, got {list(self.values)}")
         if self.kind == "loguniform" and self.values[0] <= 0:
@@ -149,6 +155,8 @@ class Dist(BaseModel):
             value = math.exp(rng.uniform(math.log(self.values[0]), math.log(self.values[1])))
         elif self.kind == "normal":
             value = rng.normal(*self.values)
+        elif self.kind == "integers":
+            value = rng.integers(int(self.values[0]), int(self.values[1]) + 1)
         elif self.kind == "mixture":
             p = None if self.weights is None else np.asarray(self.weights) / sum(self.weights)
             index = int(rng.choice(len(self.values) // 2, p=p))
@@ -158,6 +166,42 @@ class Dist(BaseModel):
             value = self.values[int(rng.choice(len(self.values), p=p))]
         value = float(min(max(value, bounds[0]), bounds[1]))
         return float(round(value)) if integer else value
+
+
+class DistVector(BaseModel):
+    """Independent distributions, one per component of a vector parameter (R, G, B; x, y).
+
+    Attributes
+    ----------
+    components : one :class:`Dist` per component, drawn in order.
+    """
+
+    model_config = ConfigDict(frozen=True, extra="forbid")
+
+    components: tuple[Dist, ...]
+
+    @model_validator(mode="before")
+    @classmethod
+    def _parse(cls, data: Any) -> Any:
+        if isinstance(data, DistVector):
+            return data
+        if isinstance(data, (list, tuple)) and data:
+            return {"components": tuple(data)}
+        if isinstance(data, dict) and "components" in data:
+            return data
+        raise ValueError(f"expected a list with one value per component, like [[0.3, 0.7], 0.5], got {data!r}")
+
+    @model_serializer
+    def _compact(self) -> Any:
+        return [component.model_dump() for component in self.components]
+
+    def support(self) -> tuple[float, ...]:
+        """The values that bound what can be drawn, over all components."""
+        return tuple(v for component in self.components for v in component.support())
+
+    def sample(self, rng: np.random.Generator, bounds: tuple[float, float], integer: bool = False) -> tuple[float, ...]:
+        """Draw each component in turn (see :meth:`Dist.sample`)."""
+        return tuple(component.sample(rng, bounds, integer) for component in self.components)
 
 
 class Categorical(BaseModel):
@@ -210,6 +254,7 @@ def number(
     description: str,
     integer: bool = False,
     choices: tuple[float, ...] | None = None,
+    size: int | None = None,
 ) -> Any:
     """Declare a numeric parameter (a pydantic field holding a :class:`Dist`).
 
@@ -221,10 +266,14 @@ def number(
     description : one line for the parameter table.
     integer : values are whole numbers.
     choices : the only allowed values (then the value is a number or ``{choice: [...]}``).
+    size : a vector of this many components (a :class:`DistVector`), each within ``[low, high]``.
     """
     extra: dict[str, Any] = {"kind": "integer" if integer else "number", "unit": unit, "bounds": (low, high)}
     if choices is not None:
         extra["choices"] = choices
+    if size is not None:
+        extra["size"] = size
+        return Field(default=DistVector.model_validate(default), description=description, json_schema_extra=extra)
     return Field(default=Dist.model_validate(default), description=description, json_schema_extra=extra)
 
 
@@ -260,7 +309,9 @@ def check_value(value: Any, declared: dict[str, Any]) -> Any:
     if kind in ("number", "integer", "probability"):
         low, high = declared["bounds"]
         unit = f" {declared['unit']}" if declared.get("unit") else ""
-        values = value.support() if isinstance(value, Dist) else (value,)
+        if "size" in declared and len(value.components) != declared["size"]:
+            raise ValueError(f"expected {declared['size']} components, got {len(value.components)}")
+        values = value.support() if isinstance(value, (Dist, DistVector)) else (value,)
         for v in values:
             if not low <= v <= high:
                 raise ValueError(f"{v:g} is out of range: valid range is [{low:g}, {high:g}]{unit}")
@@ -279,7 +330,8 @@ def check_value(value: Any, declared: dict[str, Any]) -> Any:
 
 
 def draw_value(value: Any, declared: dict[str, Any], rng: np.random.Generator) -> Any:
-    """Draw one value of a parameter: a number (an ``int`` for an integer parameter), a name or a bool.
+    """Draw one value of a parameter: a number (an ``int`` for an integer parameter), a tuple of numbers (a
+    vector), a name or a bool.
 
     Parameters
     ----------
@@ -290,6 +342,8 @@ def draw_value(value: Any, declared: dict[str, Any], rng: np.random.Generator) -
     if isinstance(value, Dist):
         drawn = value.sample(rng, declared["bounds"], integer=declared["kind"] == "integer")
         return int(drawn) if declared["kind"] == "integer" else drawn
+    if isinstance(value, DistVector):
+        return value.sample(rng, declared["bounds"], integer=declared["kind"] == "integer")
     if isinstance(value, Categorical):
         return value.sample(rng)
     return bool(rng.random() < value)  # a probability

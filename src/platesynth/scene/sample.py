@@ -1,4 +1,11 @@
-"""Drawing a concrete :class:`Scene` from a :class:`SceneConfig` with one seeded generator."""
+"""Drawing a concrete :class:`Scene` from a :class:`SceneConfig` with one seeded generator.
+
+Every range, spread and factor that shapes a scene is a catalogue parameter (:mod:`platesynth.scene.catalogue`).
+What stays here is fixed by geometry or by definition: the SBS plate geometry, the light panel's size, orientations
+(uniform over all directions: nothing in the setup prefers one), positions spread over their whole domain (a
+well, the plate), how close to a well's wall marks may lie, the pen-stroke model and the number of attempts to
+place a plaque.
+"""
 
 from __future__ import annotations
 
@@ -8,7 +15,7 @@ import math
 import numpy as np
 
 from platesynth.errors import ParameterError
-from platesynth.scene.catalogue import SceneConfig
+from platesynth.scene.catalogue import ArtifactsConfig, PlaquesConfig, SceneConfig
 from platesynth.scene.params import (
     Artifacts,
     Background,
@@ -29,6 +36,8 @@ from platesynth.scene.params import (
     WellStain,
 )
 
+SBS_LENGTH_MM, SBS_WIDTH_MM = 127.76, 85.48
+"""The SBS footprint of every plate format."""
 # rows, cols, pitch, bottom radius, wall thickness, well depth (mm); SBS footprint, wells centred on the plate
 _FORMATS: dict[int, tuple[int, int, float, float, float, float]] = {
     6: (2, 3, 39.12, 17.4, 1.5, 17.4),
@@ -38,6 +47,18 @@ _FORMATS: dict[int, tuple[int, int, float, float, float, float]] = {
 }
 N_HARMONICS = 5
 """Plaque outlines use the Fourier harmonics k = 2 .. N_HARMONICS + 1."""
+MIN_PLAQUE_RADIUS_MM = 0.05
+"""The smallest plaque (the lower end of ``plaques.radius_mm``)."""
+PLACEMENT_ATTEMPTS = 30
+"""Tries to place a plaque within ``plaques.max_overlap`` of the others before it is left out."""
+LIGHT_PANEL_MM = (215.0, 300.0)
+"""The light box's glowing panel (about A4), upright; it grows where the margins ask for more."""
+PIPETTE_ANGLE_SD = 0.08
+"""Spread of a pipette scratch's position along the rim, radians from the top of the well."""
+SCRATCH_REACH, DEBRIS_REACH = 0.95, 0.97
+"""Other scratches start, and specks lie, within this fraction of the well's radius."""
+MARKER_JITTER_MM = 1.0
+"""Spread of the marker writing's start around the free corner, mm per axis."""
 
 
 def plate_geometry(fmt: int) -> PlateGeometry:
@@ -45,7 +66,7 @@ def plate_geometry(fmt: int) -> PlateGeometry:
     if fmt not in _FORMATS:
         raise ParameterError(f"plate.format: {fmt} is not a plate format: valid formats are 6, 12, 24, 96")
     rows, cols, pitch, radius, wall, depth = _FORMATS[fmt]
-    length, width = 127.76, 85.48
+    length, width = SBS_LENGTH_MM, SBS_WIDTH_MM
     return PlateGeometry(
         format=fmt,
         rows=rows,
@@ -134,22 +155,25 @@ def sample_scene(config: SceneConfig, seed: int) -> Scene:
         defocus_px=c.camera.draw("defocus_px", rng),
     )
 
-    kind = c.background.draw("kind", rng)
-    gray = c.background.draw("desk_gray", rng)
-    warmth = rng.uniform(-0.03, 0.06)
-    brightness = c.background.draw("brightness", rng)
-    texture = c.background.draw("texture", rng)
-    ruler = c.background.draw("ruler", rng)
-    margins = [c.background.draw("panel_margin_x_mm", rng), c.background.draw("panel_margin_y_mm", rng)]
-    below = c.background.draw("panel_below", rng)
+    b = c.background
+    kind = b.draw("kind", rng)
+    gray = b.draw("desk_gray", rng)
+    warmth = b.draw("desk_warmth", rng)
+    brightness = b.draw("brightness", rng)
+    texture = b.draw("texture", rng)
+    ruler = b.draw("ruler", rng)
+    margins = [b.draw("panel_margin_x_mm", rng), b.draw("panel_margin_y_mm", rng)]
+    below = b.draw("panel_below", rng)
+    portrait = b.draw("panel_portrait", rng)
+    left = b.draw("panel_left", rng)
     background = Background(
         kind=kind,
         brightness=brightness,
         color_rgb=tuple(np.clip(np.round([gray * (1 + warmth), gray, gray * (1 - warmth)], 4), 0, 1)),
         texture=texture,
         ruler=ruler,
-        panel_mm=_light_panel(rng, plate, margins, below),
-        frame_mm=rng.uniform(0.0, 15.0),
+        panel_mm=_light_panel(plate, margins, below, portrait, left),
+        frame_mm=b.draw("frame_mm", rng),
     )
 
     stain = Stain(
@@ -166,6 +190,7 @@ def sample_scene(config: SceneConfig, seed: int) -> Scene:
     jitter = c.stain.draw("well_density_jitter", rng)
     centre_gradient = c.stain.draw("centre_gradient", rng)
     drying = c.stain.draw("drying_detail", rng)
+    centre_offset = c.stain.draw("centre_offset", rng)
 
     negative = c.plaques.draw("negative_plate", rng)
     top_count = c.plaques.draw("top_count", rng)
@@ -179,6 +204,9 @@ def sample_scene(config: SceneConfig, seed: int) -> Scene:
     clearness = c.plaques.draw("clearness", rng)
     edge_bias = c.plaques.draw("edge_bias", rng)
     max_overlap = c.plaques.draw("max_overlap", rng)
+    count_jitter = c.plaques.draw("count_jitter", rng)
+    max_radius = c.plaques.draw("max_radius", rng)
+    harmonic_decay = c.plaques.draw("harmonic_decay", rng)
     emptied_p = c.wells.emptied
 
     wells: list[Well] = []
@@ -190,7 +218,8 @@ def sample_scene(config: SceneConfig, seed: int) -> Scene:
     extra_scratches = c.artifacts.draw("extra_scratches", rng)
     debris_rate = c.artifacts.draw("debris", rng)
     radius = plate.well_radius_mm
-    harmonic_scale = irregularity / np.arange(2, N_HARMONICS + 2) ** 1.2
+    harmonic_scale = irregularity / np.arange(2, N_HARMONICS + 2) ** harmonic_decay
+    a = c.artifacts
 
     for plate_row in range(plate.rows):
         for plate_col in range(plate.cols):
@@ -201,7 +230,7 @@ def sample_scene(config: SceneConfig, seed: int) -> Scene:
             expected = 0.0 if negative else top_count / factor**step
             emptied = bool(rng.random() < emptied_p)
             lysed = (not emptied) and expected > lysis_count
-            count = 0 if emptied or lysed else int(rng.poisson(expected * rng.lognormal(0.0, 0.15)))
+            count = 0 if emptied or lysed else int(rng.poisson(expected * rng.lognormal(0.0, count_jitter)))
             wells.append(
                 Well(
                     id=well_id,
@@ -214,10 +243,10 @@ def sample_scene(config: SceneConfig, seed: int) -> Scene:
                     expected_plaques=round(expected, 4),
                     stain=WellStain(
                         density=density * float(np.exp(rng.normal(0.0, jitter))),
-                        centre_gradient=centre_gradient * rng.uniform(0.5, 1.0),
+                        centre_gradient=centre_gradient * c.stain.draw("centre_gradient_factor", rng),
                         centre_angle_deg=rng.uniform(0, 180),
-                        centre_offset_mm=_tuple2(rng.normal(0, 0.15 * radius, 2)),
-                        drying_detail=drying * rng.uniform(0.7, 1.0),
+                        centre_offset_mm=_tuple2(rng.normal(0, centre_offset * radius, 2)),
+                        drying_detail=drying * c.stain.draw("drying_detail_factor", rng),
                     ),
                 )
             )
@@ -225,42 +254,42 @@ def sample_scene(config: SceneConfig, seed: int) -> Scene:
                 continue
             plaques.extend(
                 _sample_plaques(
-                    rng, count, well_id, center, radius, len(plaques), median_radius, radius_spread,
-                    harmonic_scale, softness, clearness, edge_bias, max_overlap,
+                    rng, c.plaques, count, well_id, center, radius, len(plaques), median_radius, radius_spread,
+                    max_radius, harmonic_scale, softness, clearness, edge_bias, max_overlap,
                 )
             )
-            if c.artifacts.draw("pipette_scratch", rng):
-                scratches.append(_pipette_scratch(rng, well_id, center, radius, scratch_length, scratch_width))
+            if a.draw("pipette_scratch", rng):
+                scratches.append(_pipette_scratch(rng, a, well_id, center, radius, scratch_length, scratch_width))
             for _ in range(int(rng.poisson(extra_scratches))):
-                start = center + _in_disc(rng, radius * 0.95)
-                stroke = _smooth_stroke(rng, start, rng.uniform(0.3, 1.0) * scratch_length, n_points=4)
+                start = center + _in_disc(rng, radius * SCRATCH_REACH)
+                stroke = _smooth_stroke(rng, start, a.draw("scratch_length_factor", rng) * scratch_length, n_points=4)
                 scratches.append(Scratch(well=well_id, points_mm=tuple(map(_tuple2, stroke)),
-                                         width_mm=scratch_width * rng.uniform(0.5, 1.0)))
+                                         width_mm=scratch_width * a.draw("scratch_width_factor", rng)))
             for _ in range(int(rng.poisson(debris_rate))):
-                length = rng.uniform(0.08, 0.5)
+                length = a.draw("debris_length_mm", rng)
                 debris.append(
                     Debris(
                         well=well_id,
-                        center_mm=_tuple2(center + _in_disc(rng, radius * 0.97)),
+                        center_mm=_tuple2(center + _in_disc(rng, radius * DEBRIS_REACH)),
                         length_mm=length,
-                        width_mm=length * rng.uniform(0.2, 0.7),
+                        width_mm=length * a.draw("debris_width_factor", rng),
                         angle_deg=rng.uniform(0, 180),
-                        darkness=rng.uniform(0.5, 2.5),
+                        darkness=a.draw("debris_darkness", rng),
                     )
                 )
     wells.sort(key=lambda w: w.id)
 
     marker: list[MarkerStroke] = []
-    if c.artifacts.draw("marker", rng):
-        marker = _marker_writing(rng, plate, camera.from_below)
+    if a.draw("marker", rng):
+        marker = _marker_writing(rng, a, plate, camera.from_below)
     blots = [
         Blot(
             center_mm=_tuple2(rng.uniform([0, 0], [plate.length_mm, plate.width_mm])),
-            radius_mm=rng.uniform(0.5, 4.0),
-            color_rgb=tuple(np.round(rng.uniform([0.3, 0.2, 0.3], [0.7, 0.6, 0.8]), 4)),
-            opacity=rng.uniform(0.05, 0.3),
+            radius_mm=a.draw("blot_radius_mm", rng),
+            color_rgb=tuple(np.round(a.draw("blot_rgb", rng), 4)),
+            opacity=a.draw("blot_opacity", rng),
         )
-        for _ in range(int(rng.poisson(c.artifacts.draw("blots", rng))))
+        for _ in range(int(rng.poisson(a.draw("blots", rng))))
     ]
 
     lighting = Lighting(
@@ -268,8 +297,8 @@ def sample_scene(config: SceneConfig, seed: int) -> Scene:
         color_temperature_k=c.lighting.draw("color_temperature_k", rng),
         vignetting=c.lighting.draw("vignetting", rng),
         glare_strength=c.lighting.draw("glare", rng),
-        glare_center=_tuple2(rng.uniform(0, 1, 2)),
-        glare_radius=rng.uniform(0.1, 0.4),
+        glare_center=_tuple2(c.lighting.draw("glare_position", rng)),
+        glare_radius=c.lighting.draw("glare_radius", rng),
     )
     post = _sample_post(c, rng)
     texture_seed = int(rng.integers(0, 2**31 - 1))
@@ -289,15 +318,15 @@ def sample_scene(config: SceneConfig, seed: int) -> Scene:
 
 
 def _light_panel(
-    rng: np.random.Generator, plate: PlateGeometry, margins: list[float], below: bool
+    plate: PlateGeometry, margins: list[float], below: bool, portrait: bool, near_left: bool
 ) -> tuple[float, ...]:
-    """An A4-sized light panel with the plate near one of its corners: ``margins`` (mm) from the nearest side
-    edge and from the nearest top/bottom edge (below the plate when ``below``); negative: the plate overhangs."""
-    portrait = rng.random() < 0.7
-    panel_w, panel_h = (215.0, 300.0) if portrait else (300.0, 215.0)
+    """An A4-sized light panel (:data:`LIGHT_PANEL_MM`, upright when ``portrait``) with the plate near one of its
+    corners: ``margins`` (mm) from the nearest side edge (the left one when ``near_left``) and from the nearest
+    top/bottom edge (below the plate when ``below``); negative: the plate overhangs."""
+    panel_w, panel_h = LIGHT_PANEL_MM if portrait else LIGHT_PANEL_MM[::-1]
     panel_w, panel_h = max(panel_w, plate.length_mm + 2 * margins[0]), max(panel_h, plate.width_mm + 2 * margins[1])
     half_l, half_w = plate.length_mm / 2, plate.width_mm / 2
-    left = -half_l - margins[0] if rng.random() < 0.6 else half_l + margins[0] - panel_w
+    left = -half_l - margins[0] if near_left else half_l + margins[0] - panel_w
     top = half_w + margins[1] - panel_h if below else -half_w - margins[1]
     return tuple(round(v, 3) for v in (left, top, left + panel_w, top + panel_h))
 
@@ -310,6 +339,7 @@ def _in_disc(rng: np.random.Generator, radius: float, edge_bias: float = 0.0) ->
 
 def _sample_plaques(
     rng: np.random.Generator,
+    section: PlaquesConfig,
     count: int,
     well_id: int,
     center: np.ndarray,
@@ -317,17 +347,20 @@ def _sample_plaques(
     first_index: int,
     median_radius: float,
     radius_spread: float,
+    max_radius: float,
     harmonic_scale: np.ndarray,
     softness: float,
     clearness: float,
     edge_bias: float,
     max_overlap: float,
 ) -> list[Plaque]:
-    radii = np.clip(median_radius * np.exp(rng.normal(0, radius_spread, count)), 0.05, 0.5 * well_radius)
+    radii = np.clip(
+        median_radius * np.exp(rng.normal(0, radius_spread, count)), MIN_PLAQUE_RADIUS_MM, max_radius * well_radius
+    )
     placed: list[tuple[np.ndarray, float]] = []
     out: list[Plaque] = []
     for radius in radii:
-        for _attempt in range(30 if max_overlap < 1.0 else 1):
+        for _attempt in range(PLACEMENT_ATTEMPTS if max_overlap < 1.0 else 1):
             offset = _in_disc(rng, well_radius, edge_bias)
             if max_overlap >= 1.0 or all(
                 (radius + r - np.hypot(*(offset - o))) <= 2 * max_overlap * min(radius, r) for o, r in placed
@@ -344,42 +377,52 @@ def _sample_plaques(
                 center_mm=_tuple2(center + offset),
                 radius_mm=round(float(radius), 4),
                 fourier=tuple(_tuple2(pair) for pair in coefficients),
-                softness=softness * rng.uniform(0.8, 1.25),
-                clearness=min(1.0, clearness * rng.uniform(0.9, 1.1)),
+                softness=softness * section.draw("softness_factor", rng),
+                clearness=min(1.0, clearness * section.draw("clearness_factor", rng)),
             )
         )
     return out
 
 
 def _pipette_scratch(
-    rng: np.random.Generator, well_id: int, center: np.ndarray, radius: float, length: float, width: float
+    rng: np.random.Generator,
+    section: ArtifactsConfig,
+    well_id: int,
+    center: np.ndarray,
+    radius: float,
+    length: float,
+    width: float,
 ) -> Scratch:
     """The short hook-shaped streak where the pipette tip touched the layer, at the top of the well."""
-    angle = rng.normal(0.0, 0.08)
+    angle = rng.normal(0.0, PIPETTE_ANGLE_SD)
     start = center + radius * 1.02 * np.array([math.sin(angle), -math.cos(angle)])
-    length *= rng.uniform(0.6, 1.3)
-    bend = rng.normal(0.0, 0.35)
+    length *= section.draw("pipette_length_factor", rng)
+    bend = section.draw("pipette_bend", rng)
     t = np.linspace(0.0, 1.0, 5)
     along = t * length
     side = bend * length * t**2
     direction = np.array([-math.sin(angle), math.cos(angle)])
     normal = np.array([direction[1], -direction[0]])
     points = start + along[:, None] * direction + side[:, None] * normal
-    return Scratch(well=well_id, points_mm=tuple(map(_tuple2, points)), width_mm=width * rng.uniform(0.8, 1.2))
+    return Scratch(
+        well=well_id, points_mm=tuple(map(_tuple2, points)), width_mm=width * section.draw("pipette_width_factor", rng)
+    )
 
 
-def _marker_writing(rng: np.random.Generator, plate: PlateGeometry, from_below: bool) -> list[MarkerStroke]:
+def _marker_writing(
+    rng: np.random.Generator, section: ArtifactsConfig, plate: PlateGeometry, from_below: bool
+) -> list[MarkerStroke]:
     """A few pen strokes in a free corner of the plate, in one ink."""
-    ink = tuple(np.round(rng.uniform([0.0, 0.2, 0.5], [0.15, 0.45, 0.85]), 4))
+    ink = tuple(np.round(section.draw("marker_ink_rgb", rng), 4))
     margin_x = plate.a1_x_mm - plate.well_radius_mm - plate.wall_mm
     margin_y = plate.a1_y_mm - plate.well_radius_mm - plate.wall_mm
     # the corner that appears top-left in the image: the plate's top-right when seen from below
     corner_x = plate.length_mm - max(margin_x, 4.0) / 2 if from_below else max(margin_x, 4.0) / 2
-    start = np.array([corner_x, max(margin_y, 4.0) / 2 + 2.0]) + rng.normal(0, 1.0, 2)
-    size = rng.uniform(3.0, 7.0)
-    width = rng.uniform(0.35, 0.7)
+    start = np.array([corner_x, max(margin_y, 4.0) / 2 + 2.0]) + rng.normal(0, MARKER_JITTER_MM, 2)
+    size = section.draw("marker_size_mm", rng)
+    width = section.draw("marker_width_mm", rng)
     strokes = []
-    for i in range(int(rng.integers(1, 4))):
+    for i in range(section.draw("marker_strokes", rng)):
         stroke = _smooth_stroke(rng, start + np.array([i * size * 0.6, 0.0]), size)
         strokes.append(MarkerStroke(points_mm=tuple(map(_tuple2, stroke)), width_mm=width, color_rgb=ink))
     return strokes
