@@ -280,7 +280,7 @@ def test_the_compositor_post_processing_is_the_raster_renderers(pool):
     from platesynth.render import postprocess
     from platesynth.render.raster import REFERENCE_WIDTH
     from platesynth.render.textures import scene_rng
-    from platesynth.scene.params import Effect
+    from platesynth.scene.concrete import Effect
 
     scene = sample_scene(load_config("high", overrides={"plaques.negative_plate": 1.0}), 2)
     switches = {name: effect.model_copy(update={"enabled": False}) for name, effect in scene.post if isinstance(effect, Effect)}

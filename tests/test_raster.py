@@ -12,7 +12,7 @@ from platesynth.render.masks import clean_isolated_pixels
 from platesynth.render.raster import camera_view, render_raster
 from platesynth.render.result import plaque_counts
 from platesynth.scene import Scene, load_config, sample_scene
-from platesynth.scene.params import Plaque
+from platesynth.scene.concrete import Plaque
 
 SMALL = (256, 192)
 

@@ -305,9 +305,9 @@ def test_load_scene_reports_bad_files(tmp_path):
         load_scene(broken)
 
 
-def test_cli_scene_params_json_and_errors():
+def test_cli_scene_catalogue_json_and_errors():
     runner = CliRunner()
-    result = runner.invoke(app, ["scene", "params", "--json"])
+    result = runner.invoke(app, ["scene", "catalogue", "--json"])
     assert result.exit_code == 0, result.output
     assert [row["name"] for row in json.loads(result.stdout)] == parameter_names()
     result = runner.invoke(app, ["scene", "show", "--preset", "low", "--set", "plaques.radius_mm=[0.01,1]"])

@@ -1,4 +1,4 @@
-"""``platesynth scene ...``: the scene parameters, presets, configurations and sampled scenes."""
+"""``platesynth scene ...``: the parameter catalogue, presets, configurations and sampled scenes."""
 
 from __future__ import annotations
 
@@ -12,7 +12,7 @@ from rich.table import Table
 
 from platesynth.cli._common import print_json, user_errors
 
-app = typer.Typer(help="Scene parameters, presets and sampled scenes.", no_args_is_help=True)
+app = typer.Typer(help="Scene parameter catalogue, presets and sampled scenes.", no_args_is_help=True)
 
 Preset = Annotated[str | None, typer.Option("--preset", help="Scene preset (see `platesynth scene presets`).")]
 ConfigFile = Annotated[Path | None, typer.Option("--config", help="YAML scene configuration (applied over the preset).")]
@@ -28,10 +28,10 @@ def _range_text(row: dict) -> str:
     return f"[{values[0]:g}, {values[1]:g}]"
 
 
-@app.command("params")
+@app.command("catalogue")
 @user_errors
-def params(as_json: Annotated[bool, typer.Option("--json", help="Print JSON instead of a table.")] = False) -> None:
-    """List every scene parameter: name, type, unit, valid range, default and description."""
+def catalogue(as_json: Annotated[bool, typer.Option("--json", help="Print JSON instead of a table.")] = False) -> None:
+    """The parameter catalogue: every scene parameter's name, type, unit, valid range, default and description."""
     from platesynth.scene import parameter_table
 
     rows = parameter_table()

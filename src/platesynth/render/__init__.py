@@ -6,7 +6,7 @@ import importlib
 
 from platesynth.errors import ParameterError
 from platesynth.render.result import RenderResult, WellInfo, plaque_counts
-from platesynth.scene.params import Scene
+from platesynth.scene.concrete import Scene
 
 BACKENDS: dict[str, str] = {
     "raster": "platesynth.render.raster:render_raster",

@@ -30,7 +30,7 @@ from platesynth.errors import ParameterError
 from platesynth.render.color import srgb_to_linear
 from platesynth.render.sampling import boxes_from_extents, clip01, grid_sample, tile_sample, to_plate
 from platesynth.render.textures import FIBRE_CELL_MM, FINE_CELL_MM, FUZZ_CELL_MM, RESIDUAL_CELL_MM, SceneTextures
-from platesynth.scene.params import Scene, Well
+from platesynth.scene.concrete import Scene, Well
 from platesynth.scene.sample import stain_rgb
 
 # ---- the monolayer

@@ -7,7 +7,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from platesynth.scene.params import Scene
+from platesynth.scene.concrete import Scene
 
 REFERENCE_WIDTH = 1024
 """Pixel-valued scene parameters (blur, noise lengths) are given for an image this wide."""

@@ -3,7 +3,7 @@
 Images are ``(H, W, 3)`` float32, display-encoded (sRGB-like), nominally in [0, 1]; each function returns a
 new array and leaves clipping to :func:`to_uint8`. Lengths in pixels are for the image as given (the renderer
 scales the scene's values, which are for 1024-pixel-wide images). :func:`apply_post` applies a scene's
-:class:`~platesynth.scene.params.PostProcessing` in order.
+:class:`~platesynth.scene.concrete.PostProcessing` in order.
 """
 
 from __future__ import annotations
@@ -15,7 +15,7 @@ import numpy as np
 from PIL import Image
 
 from platesynth.render import post_kernels as kernels
-from platesynth.scene.params import PostProcessing
+from platesynth.scene.concrete import PostProcessing
 
 
 def gaussian_taps(sigma: float) -> np.ndarray:

@@ -25,7 +25,7 @@ from platesynth.render.color import gamma_lut, linear_lut, srgb_to_linear
 from platesynth.render.look import DESK_CELL_MM, DESK_SHEEN, RELIEF_EMBOSS, RELIEF_RAISED, TOP_EDGE_OFFSET_MM
 from platesynth.render.result import RenderResult, WellInfo, check_size, renumber
 from platesynth.render.textures import noise_grid, plate_grid_index, scene_rng, scene_textures
-from platesynth.scene.params import PlateGeometry, Scene, Well
+from platesynth.scene.concrete import PlateGeometry, Scene, Well
 from platesynth.scene.sample import color_temperature_rgb
 
 __all__ = ["REFERENCE_WIDTH", "View", "camera_view", "render_raster", "srgb_to_linear", "texels_per_mm"]

@@ -15,7 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import ndimage
 
-from platesynth.scene.params import PlateGeometry, Scene
+from platesynth.scene.concrete import PlateGeometry, Scene
 
 STREAMS = ("well_offsets", "unevenness", "fibres", "desk", "fine", "residual", "post")
 """The renderers' random streams, in the order they are spawned from the scene's seed."""

@@ -5,7 +5,7 @@ Each parameter is a field of a :class:`Section` of :class:`SceneConfig`, declare
 :func:`~platesynth.scene.distributions.category`: its name, kind, unit, valid range, default and a one-line
 description. Most parameters are drawn once per plate; those whose description starts with "each" are drawn
 again for every well, plaque, scratch, speck or blot. :func:`parameter_table` reads them for
-``platesynth scene params`` and the docs; :mod:`platesynth.scene.sample` draws them (:meth:`Section.draw`).
+``platesynth scene catalogue`` and the docs; :mod:`platesynth.scene.sample` draws them (:meth:`Section.draw`).
 """
 
 from __future__ import annotations

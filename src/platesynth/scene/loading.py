@@ -99,7 +99,7 @@ def _apply_overrides(data: dict[str, Any], overrides: dict[str, Any]) -> dict[st
     for dotted, value in overrides.items():
         if dotted not in names and dotted != "name":
             guess = difflib.get_close_matches(dotted, names, n=1)
-            hint = f" (did you mean {guess[0]}?)" if guess else " (see `platesynth scene params`)"
+            hint = f" (did you mean {guess[0]}?)" if guess else " (see `platesynth scene catalogue`)"
             raise ParameterError(f"override {dotted}: unknown parameter{hint}")
         if dotted == "name":
             data["name"] = value

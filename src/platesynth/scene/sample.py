@@ -16,7 +16,7 @@ import numpy as np
 
 from platesynth.errors import ParameterError
 from platesynth.scene.catalogue import ArtifactsConfig, PlaquesConfig, SceneConfig
-from platesynth.scene.params import (
+from platesynth.scene.concrete import (
     Artifacts,
     Background,
     Blot,

@@ -35,7 +35,7 @@ from platesynth.render.blender.pool import (
     setting_from_env,
 )
 from platesynth.render.result import RenderResult, WellInfo, check_size
-from platesynth.scene.params import Scene
+from platesynth.scene.concrete import Scene
 
 ENGINES = ("CYCLES", "BLENDER_EEVEE")
 DEVICES = ("auto", "CPU", "GPU")

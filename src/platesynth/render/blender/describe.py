@@ -17,7 +17,7 @@ import numpy as np
 
 from platesynth.errors import RenderError
 from platesynth.render.raster import REFERENCE_WIDTH, View, camera_view, srgb_to_linear
-from platesynth.scene.params import Scene
+from platesynth.scene.concrete import Scene
 from platesynth.scene.sample import color_temperature_rgb, stain_rgb
 
 SENSOR_WIDTH_MM = 36.0

@@ -24,7 +24,7 @@ from platesynth.render.blender.inside import geometry, materials, plate
 from platesynth.render.look import FLOOR_TRANSMITTANCE, WALL_BAND_GAIN
 from platesynth.render.raster import plate_relief, texels_per_mm
 from platesynth.render.textures import SceneTextures, plate_grid_index, scene_textures
-from platesynth.scene.params import PlateGeometry, Scene
+from platesynth.scene.concrete import PlateGeometry, Scene
 
 PASS_PROPERTY = "platesynth_pass"
 RULER_WIDTH_MM = 22.0
