@@ -216,7 +216,9 @@ def test_an_error_inside_blender_is_an_error_for_the_user(pool):
     with pytest.raises(BlenderScriptError, match="engine must be one of"):
         from platesynth.render.blender.describe import describe_scene
 
-        request = {"scene": describe_scene(scene_with_plaques(), SIZE), "options": {"engine": "BLENDER_EEVEE_NEXT"}}
+        texture_dir = pool.scratch / "y"
+        texture_dir.mkdir()
+        request = {"scene": describe_scene(scene_with_plaques(), SIZE, texture_dir), "options": {"engine": "BLENDER_EEVEE_NEXT"}}
         pool.request({"op": "render", "out_dir": str(pool.scratch / "y"), **request})
     reply = pool.request({"op": "ping"})  # the same worker carries on
     assert reply["ok"] and reply["blender"].startswith("5.0")

@@ -29,7 +29,15 @@ from numba import njit, prange
 from platesynth.errors import ParameterError
 from platesynth.render.color import srgb_to_linear
 from platesynth.render.sampling import boxes_from_extents, clip01, grid_sample, tile_sample, to_plate
-from platesynth.render.textures import FIBRE_CELL_MM, FINE_CELL_MM, FUZZ_CELL_MM, RESIDUAL_CELL_MM, SceneTextures
+from platesynth.render.textures import (
+    FIBRE_CELL_MM,
+    FINE_CELL_MM,
+    FUZZ_CELL_MM,
+    RESIDUAL_CELL_MM,
+    SceneTextures,
+    plate_grid_index,
+    scene_textures,
+)
 from platesynth.scene.concrete import Scene, Well
 from platesynth.scene.sample import stain_rgb
 
@@ -465,18 +473,53 @@ def fibre_grid_or_empty(textures: SceneTextures) -> np.ndarray:
     return textures.fibre_grid if textures.fibre_grid is not None else np.zeros((2, 2), dtype=np.float32)
 
 
-def floor_transmittance(
-    scene: Scene, texels_per_mm: float, wells: list[Well], top_centres: np.ndarray, textures: SceneTextures,
-    well_offsets: np.ndarray,
-) -> np.ndarray:
-    """The monolayer's linear RGB transmittance on a plate-space texel grid (:func:`texel_grid`): float32
-    ``(H, W, 3)``, 1 outside the wells. The Blender backend's well floors show this texture."""
+def wells_by_grid(scene: Scene) -> list[Well]:
+    """The scene's wells in plate row-major order (row letter, then column number)."""
+    plate = scene.plate
+    grid: list[Well | None] = [None] * (plate.rows * plate.cols)
+    for well in scene.wells:
+        index = plate_grid_index(plate, well.center_mm)
+        if index >= 0:
+            grid[index] = well
+    if any(w is None for w in grid) or len(scene.wells) != len(grid):
+        raise ParameterError(f"scene.wells must hold one well per position of the {plate.format}-well grid")
+    return grid  # type: ignore[return-value]
+
+
+def floor_texels_per_mm(px_per_mm: float) -> float:
+    """Resolution of the floor texture for an image of ``px_per_mm``: twice the image's (so a renderer's pixel
+    filter sees the fine texture), between 4 and 16 texels per mm, in steps of a quarter octave."""
+    return float(2.0 ** (round(4.0 * math.log2(min(max(2.0 * px_per_mm, 4.0), 16.0))) / 4.0))
+
+
+def floor_transmittance(scene: Scene, texels_per_mm: float, textures: SceneTextures | None = None) -> np.ndarray:
+    """The monolayer's linear RGB transmittance on a plate-space texel grid (:func:`texel_grid`).
+
+    Parameters
+    ----------
+    scene : Scene
+        A concrete scene.
+    texels_per_mm : float
+        Resolution of the grid.
+    textures : SceneTextures, optional
+        The scene's noise textures (drawn from its seed when not given).
+
+    Returns
+    -------
+    numpy.ndarray
+        float32 ``(H, W, 3)``, row 0 at plate y = 0; 1 outside the wells and in emptied wells. The Blender
+        backend's well floors show this texture; the raster renderer evaluates the same kernels per pixel.
+    """
+    textures = textures if textures is not None else scene_textures(scene)
     grid = texel_grid(scene, texels_per_mm)
     plate = scene.plate
-    content = draw_well_content(scene, grid, wells, top_centres, plate.well_radius_mm + 1.0, textures)
+    wells = wells_by_grid(scene)
+    centres = np.array([w.center_mm for w in wells], dtype=np.float64)
+    # no parallax in plate space: the ids of this drawing are not used, only the clearing
+    content = draw_well_content(scene, grid, wells, centres, plate.well_radius_mm, textures)
     out = np.empty((grid.height, grid.width, 3), dtype=np.float32)
     _bake_floor(1.0 / grid.px_per_mm, plate.a1_x_mm, plate.a1_y_mm, plate.pitch_mm, plate.rows, plate.cols,
-                plate.well_radius_mm, well_table(wells, top_centres, well_offsets), stain_table(scene, textures),
+                plate.well_radius_mm, well_table(wells, centres, textures.well_offsets), stain_table(scene, textures),
                 textures.low_grid, fibre_grid_or_empty(textures), textures.fine_tile, textures.residual_tile,
                 content.clearing, content.scratched, content.specks, out)
     return out

@@ -11,6 +11,8 @@ import math
 import numpy as np
 from numba import njit, prange
 
+from platesynth.render.look import NOISE_FLOOR, NOISE_MID_GREY, NOISE_OWN, NOISE_SHARED
+
 
 @njit(cache=True, nogil=True, parallel=True, fastmath=True)
 def blur_separable(image, taps, out):
@@ -77,8 +79,8 @@ def add_sensor_noise(image, sd, seed):
                     + np.float32((bits >> np.uint64(32)) & np.uint64(0xFFFF)) + np.float32(bits >> np.uint64(48))
                 ) * scale - np.float32(2.0)
                 value = image[y, x, c]
-                level = math.sqrt(min(max(value, np.float32(0.02)), np.float32(1.0)) / np.float32(0.5))
-                image[y, x, c] = value + sd * level * np.float32(1.7320508) * (np.float32(0.5) * common + np.float32(0.85) * own)
+                level = math.sqrt(min(max(value, np.float32(NOISE_FLOOR)), np.float32(1.0)) / np.float32(NOISE_MID_GREY))
+                image[y, x, c] = value + sd * level * np.float32(1.7320508) * (np.float32(NOISE_SHARED) * common + np.float32(NOISE_OWN) * own)
 
 
 @njit(cache=True, nogil=True, parallel=True, fastmath=True)

@@ -15,6 +15,7 @@ import numpy as np
 from PIL import Image
 
 from platesynth.render import post_kernels as kernels
+from platesynth.render.look import BLOOM_RADIUS, BLOOM_THRESHOLD, CLARITY_RADIUS, LUMINANCE
 from platesynth.scene.concrete import PostProcessing
 
 
@@ -52,7 +53,7 @@ def gaussian_blur(image: np.ndarray, sigma: float) -> np.ndarray:
 
 
 def _luminance(image: np.ndarray) -> np.ndarray:
-    return image @ np.array([0.2126, 0.7152, 0.0722], dtype=np.float32)
+    return image @ np.array(LUMINANCE, dtype=np.float32)
 
 
 def brightness(image: np.ndarray, strength: float) -> np.ndarray:
@@ -71,7 +72,7 @@ def white_balance(image: np.ndarray, gains: tuple[float, float, float]) -> np.nd
 
 def clarity(image: np.ndarray, strength: float) -> np.ndarray:
     """Local (mid-tone) contrast: ``strength`` > 0 adds, < 0 removes detail at a scale of ~2% of the width."""
-    sigma = 0.02 * image.shape[1]
+    sigma = CLARITY_RADIUS * image.shape[1]
     base = gaussian_blur(image, sigma)
     midtones = 1.0 - (2.0 * _luminance(image) - 1.0) ** 2
     return image + strength * midtones[..., None] * (image - base)
@@ -108,10 +109,10 @@ def chromatic_aberration(image: np.ndarray, shift_px: float) -> np.ndarray:
     return out
 
 
-def bloom(image: np.ndarray, strength: float, threshold: float = 0.75) -> np.ndarray:
+def bloom(image: np.ndarray, strength: float, threshold: float = BLOOM_THRESHOLD) -> np.ndarray:
     """Glow around areas brighter than ``threshold``."""
     bright = np.clip(image - threshold, 0.0, None) / (1.0 - threshold)
-    glow = gaussian_blur(bright, 0.015 * image.shape[1])
+    glow = gaussian_blur(bright, BLOOM_RADIUS * image.shape[1])
     return image + strength * glow
 
 

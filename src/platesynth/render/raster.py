@@ -18,13 +18,12 @@ from functools import lru_cache
 import numpy as np
 from PIL import Image, ImageDraw, ImageFont
 
-from platesynth.errors import ParameterError
 from platesynth.render import appearance, postprocess, shading
 from platesynth.render.camera import REFERENCE_WIDTH, View, camera_view
 from platesynth.render.color import gamma_lut, linear_lut, srgb_to_linear
 from platesynth.render.look import DESK_CELL_MM, DESK_SHEEN, RELIEF_EMBOSS, RELIEF_RAISED, TOP_EDGE_OFFSET_MM
 from platesynth.render.result import RenderResult, WellInfo, check_size, renumber
-from platesynth.render.textures import noise_grid, plate_grid_index, scene_rng, scene_textures
+from platesynth.render.textures import noise_grid, scene_rng, scene_textures
 from platesynth.scene.concrete import PlateGeometry, Scene, Well
 from platesynth.scene.sample import color_temperature_rgb
 
@@ -107,24 +106,11 @@ def marker_ink(scene: Scene, k: float) -> np.ndarray:
     return linear_lut()[np.asarray(ink)]
 
 
-def _wells_by_grid(scene: Scene) -> list[Well]:
-    """The scene's wells in plate row-major order (row letter, then column number)."""
-    plate = scene.plate
-    grid: list[Well | None] = [None] * (plate.rows * plate.cols)
-    for well in scene.wells:
-        index = plate_grid_index(plate, well.center_mm)
-        if index >= 0:
-            grid[index] = well
-    if any(w is None for w in grid) or len(scene.wells) != len(grid):
-        raise ParameterError(f"scene.wells must hold one well per position of the {plate.format}-well grid")
-    return grid  # type: ignore[return-value]
-
-
 def wells_in_view(scene: Scene, view: View) -> tuple[list[Well], np.ndarray, float]:
     """The scene's wells in plate row-major order, the centres of their walls' top edges as the camera sees them
     (with parallax about its axis) and the top edges' radius."""
     plate = scene.plate
-    wells = _wells_by_grid(scene)
+    wells = appearance.wells_by_grid(scene)
     depth = plate.well_depth_mm if scene.camera.from_below else -plate.well_depth_mm
     parallax = scene.camera.distance_mm / (scene.camera.distance_mm + depth)
     principal = np.array(view.principal_mm)

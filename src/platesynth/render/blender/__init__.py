@@ -130,7 +130,7 @@ def render_blender(
         reply = pool.request(
             {
                 "op": "render",
-                "scene": describe_scene(scene, (width, height)),
+                "scene": describe_scene(scene, (width, height), out_dir),
                 "options": {"samples": int(samples), "engine": engine, "device": device, "denoise": bool(denoise)},
                 "out_dir": str(out_dir),
             },
@@ -190,14 +190,18 @@ def export_blend(
     if target.suffix.lower() != ".blend":
         raise ParameterError(f"{target}: the file name must end in .blend")
     pool = pool or default_pool()
-    pool.request(
-        {
-            "op": "export",
-            "scene": describe_scene(scene, (width, height)),
-            "options": {"samples": int(samples), "engine": engine, "device": device},
-            "path": str(target.resolve()),
-        }
-    )
+    texture_dir = pool.new_output_dir()  # the textures are packed into the .blend
+    try:
+        pool.request(
+            {
+                "op": "export",
+                "scene": describe_scene(scene, (width, height), texture_dir),
+                "options": {"samples": int(samples), "engine": engine, "device": device},
+                "path": str(target.resolve()),
+            }
+        )
+    finally:
+        shutil.rmtree(texture_dir, ignore_errors=True)
     return target
 
 

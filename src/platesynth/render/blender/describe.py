@@ -1,9 +1,18 @@
 """Host side: turn a concrete :class:`~platesynth.scene.Scene` into the plain description the Blender side builds.
 
-The description is JSON: ``{"scene": <the scene as JSON>, "view": {...}}``. ``view`` holds what is derived
-on the host so that Blender draws the scene exactly where the raster renderer does: the camera, decomposed from
-the raster renderer's plate-to-pixel homography (:func:`platesynth.render.raster.camera_view`), the lights'
-colour and the placement of the light box.
+The description is JSON: ``{"scene": <the scene as JSON>, "view": {...}, "textures": {...}}``, plus texture
+arrays saved as ``.npy`` files beside it (the boundary is plain data, as in BlenderProc: the Blender side
+imports neither numba, nor the raster renderer, nor the scene model). ``view`` holds what is derived on the host
+so that Blender draws the scene exactly where the raster renderer does: the camera, decomposed from the raster
+renderer's plate-to-pixel homography (:func:`platesynth.render.camera.camera_view`), the lights' colour and the
+placement of the light box. ``textures`` names the plate-space arrays, each ``{"path", "texels_per_mm"}``:
+
+- ``floor``: the monolayer's linear RGB transmittance, plaques and marks included, computed by the appearance
+  model (:func:`platesynth.render.appearance.floor_transmittance`) that the raster renderer also draws;
+- ``relief``: the plate's embossed labels, rings and ribs (:func:`platesynth.render.raster.plate_relief`);
+- ``unevenness``: the stain's low-frequency grid (its cell in ``texels_per_mm``), which distorts the blots.
+
+Arrays have row 0 at plate y = 0 and texel ``(i, j)`` centred at ``((j + 0.5) / k, (i + 0.5) / k)`` mm.
 
 Blender's world frame is the plate frame ``(x, -y, z)``: plate millimetres with y flipped (so that z points up,
 out of the plate's bottom towards its lid) and the well floors at ``z = 0``, the plane the homography maps.
@@ -11,14 +20,19 @@ out of the plate's bottom towards its lid) and the well floors at ``z = 0``, the
 
 from __future__ import annotations
 
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from platesynth.errors import RenderError
-from platesynth.render.raster import REFERENCE_WIDTH, View, camera_view, srgb_to_linear
+from platesynth.render.appearance import floor_texels_per_mm, floor_transmittance
+from platesynth.render.camera import REFERENCE_WIDTH, View, camera_view
+from platesynth.render.color import srgb_to_linear
+from platesynth.render.raster import plate_relief, texels_per_mm
+from platesynth.render.textures import scene_textures
 from platesynth.scene.concrete import Scene
-from platesynth.scene.sample import color_temperature_rgb, stain_rgb
+from platesynth.scene.sample import color_temperature_rgb
 
 SENSOR_WIDTH_MM = 36.0
 FLOOR_THICKNESS_MM = 1.0
@@ -57,18 +71,22 @@ def camera_pose(scene: Scene, view: View) -> tuple[np.ndarray, float, tuple[floa
     return np.linalg.inv(world_to_camera), float(focal), (float(principal[0]), float(principal[1]))
 
 
-def describe_scene(scene: Scene, size: tuple[int, int]) -> dict[str, Any]:
+def describe_scene(scene: Scene, size: tuple[int, int], texture_dir: str | Path) -> dict[str, Any]:
     """The Blender side's input for drawing ``scene`` at ``size`` = (width, height) pixels.
 
     Parameters
     ----------
-    scene : a concrete scene.
-    size : (width, height) in pixels.
+    scene : Scene
+        A concrete scene.
+    size : tuple of int
+        (width, height) in pixels.
+    texture_dir : str or Path
+        An existing folder that receives the texture arrays (``.npy``); it must outlive the request.
 
     Returns
     -------
     dict
-        JSON-serialisable ``{"scene": ..., "view": ...}``.
+        JSON-serialisable ``{"scene": ..., "view": ..., "textures": ...}``.
     """
     width, height = (int(s) for s in size)
     view = camera_view(scene, width, height)
@@ -81,6 +99,7 @@ def describe_scene(scene: Scene, size: tuple[int, int]) -> dict[str, Any]:
     support_z = plate.height_mm - FLOOR_THICKNESS_MM + 0.01 if from_below else -FLOOR_THICKNESS_MM - 0.01
     return {
         "scene": scene.model_dump(mode="json"),
+        "textures": _write_textures(scene, view, Path(texture_dir)),
         "view": {
             "width": width,
             "height": height,
@@ -96,10 +115,27 @@ def describe_scene(scene: Scene, size: tuple[int, int]) -> dict[str, Any]:
             "toward_camera": -1.0 if from_below else 1.0,
             "floor_thickness_mm": FLOOR_THICKNESS_MM,
             "light_rgb": gains.tolist(),
-            "stain_linear_rgb": srgb_to_linear(stain_rgb(scene.stain)).tolist(),
             "desk_linear_rgb": srgb_to_linear(scene.background.color_rgb).tolist(),
             "marker_linear_rgb": [srgb_to_linear(s.color_rgb).tolist() for s in scene.artifacts.marker],
             "px_scale": width / REFERENCE_WIDTH,
             "pixel_mm": 1.0 / view.px_per_mm,
         },
     }
+
+
+def _write_textures(scene: Scene, view: View, directory: Path) -> dict[str, dict[str, Any]]:
+    """Save the plate-space textures of ``scene`` in ``directory``; return their entries for the description."""
+    noise = scene_textures(scene)
+    floor_k = floor_texels_per_mm(view.px_per_mm)
+    relief_k = texels_per_mm(view.px_per_mm)
+    arrays = {
+        "floor": (floor_transmittance(scene, floor_k, noise), floor_k),
+        "relief": (plate_relief(scene.plate, relief_k), relief_k),
+        "unevenness": (noise.low_grid, 1.0 / noise.low_cell_mm),
+    }
+    entries = {}
+    for name, (array, k) in arrays.items():
+        path = directory / f"texture_{name}.npy"
+        np.save(path, np.ascontiguousarray(array, dtype=np.float32), allow_pickle=False)
+        entries[name] = {"path": str(path), "texels_per_mm": float(k)}
+    return entries

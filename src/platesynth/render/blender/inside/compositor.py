@@ -17,12 +17,21 @@ from typing import Any
 import bpy
 
 from platesynth.render.blender.inside.materials import MASK_AOVS
+from platesynth.render.look import (
+    BLOOM_RADIUS,
+    BLOOM_THRESHOLD,
+    CLARITY_RADIUS,
+    LUMINANCE,
+    NOISE_FLOOR,
+    NOISE_MID_GREY,
+    NOISE_OWN,
+    NOISE_SHARED,
+)
 from platesynth.render.blender.inside.nodes import add, feed, link, output
 
 IMAGE_FILE = "image"
 """The image pass's File Output item (written as ``image.png``)."""
 
-_LUMINANCE = (0.2126, 0.7152, 0.0722)
 
 
 def _tree(name: str) -> tuple[bpy.types.NodeTree, bpy.types.Node, bpy.types.Node]:
@@ -81,7 +90,7 @@ class _Chain:
     def luminance(self, image: Any) -> bpy.types.NodeSocket:
         separate = feed(self.tree, add(self.tree, "CompositorNodeSeparateColor"), Image=image)
         red, green, blue = (output(separate, channel) for channel in ("Red", "Green", "Blue"))
-        return _madd(self, blue, _LUMINANCE[2], _madd(self, green, _LUMINANCE[1], self.math("MULTIPLY", red, _LUMINANCE[0])))
+        return _madd(self, blue, LUMINANCE[2], _madd(self, green, LUMINANCE[1], self.math("MULTIPLY", red, LUMINANCE[0])))
 
     def resampled(self, image: Any, u: Any, v: Any) -> bpy.types.NodeSocket:
         """``image`` sampled at normalised coordinates (u, v) (pixel centres at (i + 0.5) / size, v up), edges
@@ -170,12 +179,12 @@ def _post(chain: _Chain, post: Mapping[str, Any], seed: int, px_scale: float, wi
             chain.image = chain.mix("MULTIPLY", chain.gray(chain.math("ADD", 1.0, chain.value("Brightness", strength))))
     if enabled("white_balance") is not None:
         gains = [float(g) for g in post["white_balance_shift"]]
-        grey = sum(g * w for g, w in zip(gains, _LUMINANCE))
+        grey = sum(g * w for g, w in zip(gains, LUMINANCE))
         colour = add(tree, "ShaderNodeCombineXYZ", name="White Balance Gains")
         feed(tree, colour, X=gains[0] / grey, Y=gains[1] / grey, Z=gains[2] / grey)
         chain.image = chain.mix("MULTIPLY", output(colour, "Vector"))
     if (strength := enabled("clarity")) is not None:
-        base = chain.blur(chain.image, 0.02 * width)
+        base = chain.blur(chain.image, CLARITY_RADIUS * width)
         luminance = chain.luminance(chain.image)
         midtones = chain.math("SUBTRACT", 1.0, chain.math("POWER", _madd(chain, luminance, 2.0, -1.0), 2.0))
         detail = chain.mix("SUBTRACT", base)
@@ -220,11 +229,11 @@ def _post(chain: _Chain, post: Mapping[str, Any], seed: int, px_scale: float, wi
             link(tree, band, combine.inputs[channel])
         chain.image = output(combine, "Image")
     if (strength := enabled("bloom")) is not None:
-        bright = chain.mix("SUBTRACT", (0.75, 0.75, 0.75, 1.0))
-        bright = chain.mix("MULTIPLY", (4.0, 4.0, 4.0, 1.0), a=bright)
+        bright = chain.mix("SUBTRACT", (BLOOM_THRESHOLD,) * 3 + (1.0,))
+        bright = chain.mix("MULTIPLY", (1.0 / (1.0 - BLOOM_THRESHOLD),) * 3 + (1.0,), a=bright)
         clamp_low = add(tree, "ShaderNodeMix", data_type="RGBA", blend_type="LIGHTEN", clamp_result=False)
         feed(tree, clamp_low, Factor=1.0, A=bright, B=(0.0, 0.0, 0.0, 1.0))
-        glow = chain.blur(output(clamp_low, "Result"), 0.015 * width)
+        glow = chain.blur(output(clamp_low, "Result"), BLOOM_RADIUS * width)
         chain.image = chain.mix("ADD", glow, factor=chain.value("Bloom", strength))
     if (strength := enabled("sharpen")) is not None:
         soft = chain.blur(chain.image, max(0.5, px_scale))
@@ -239,8 +248,8 @@ def _post(chain: _Chain, post: Mapping[str, Any], seed: int, px_scale: float, wi
         # uniform noise with unit variance: (u - 0.5) * sqrt(12)
         own = chain.mix("SUBTRACT", (0.5, 0.5, 0.5, 1.0), a=output(uniform, "Color"))
         shared = chain.gray(chain.math("SUBTRACT", output(common, "Value"), 0.5))
-        mixed = chain.mix("ADD", chain.mix("MULTIPLY", (0.85, 0.85, 0.85, 1.0), a=own), a=chain.mix("MULTIPLY", (0.5, 0.5, 0.5, 1.0), a=shared))
-        level = chain.math("SQRT", chain.math("DIVIDE", chain.math("MAXIMUM", chain.luminance(chain.image), 0.02), 0.5))
+        mixed = chain.mix("ADD", chain.mix("MULTIPLY", (NOISE_OWN,) * 3 + (1.0,), a=own), a=chain.mix("MULTIPLY", (NOISE_SHARED,) * 3 + (1.0,), a=shared))
+        level = chain.math("SQRT", chain.math("DIVIDE", chain.math("MAXIMUM", chain.luminance(chain.image), NOISE_FLOOR), NOISE_MID_GREY))
         sd = chain.math("MULTIPLY", level, chain.math("MULTIPLY", chain.value("Noise Levels", strength), math.sqrt(12.0) / 255.0))
         chain.image = chain.mix("ADD", chain.mix("MULTIPLY", chain.gray(sd), a=mixed))
 

@@ -110,32 +110,18 @@ def _xyz(tree: bpy.types.NodeTree, vector: Any) -> bpy.types.Node:
 
 
 def wells_group(material: bpy.types.Material) -> bpy.types.NodeTree:
-    """Geometry nodes turning well-centre points into monolayer discs (one per well, plus random emptying).
+    """Geometry nodes turning well-centre points into floor discs (one per well), passing on the points'
+    attributes (``well_id`` for the mask pass).
 
-    Inputs: ``Well Radius`` (mm), ``Floor Height`` (mm), ``Segments``, ``Empty Probability`` and ``Seed`` (extra
-    random emptying on top of the emptied flag in the points' ``well_state`` attribute; 0 for a concrete scene). Point attributes are
-    passed on to the discs (``well_id``, stain values...), plus ``center`` (the well centre) for the shader.
+    Inputs: ``Well Radius`` (mm), ``Floor Height`` (mm), ``Segments``.
     """
     group, group_in, group_out = new_group(
         "platesynth.wells",
-        [
-            ("Well Radius", "NodeSocketFloat", 11.0),
-            ("Floor Height", "NodeSocketFloat", 0.0),
-            ("Segments", "NodeSocketInt", 128),
-            ("Empty Probability", "NodeSocketFloat", 0.0),
-            ("Seed", "NodeSocketInt", 0),
-        ],
+        [("Well Radius", "NodeSocketFloat", 11.0), ("Floor Height", "NodeSocketFloat", 0.0), ("Segments", "NodeSocketInt", 128)],
     )
-    points = _store(group, output(group_in, "Geometry"), "center", output(add(group, "GeometryNodeInputPosition"), "Position"), "FLOAT_VECTOR")
-    chance = add(group, "FunctionNodeRandomValue", data_type="BOOLEAN")
-    feed(group, chance, Probability=output(group_in, "Empty Probability"), ID=_named(group, "well_id", "INT"), Seed=output(group_in, "Seed"))
-    state = _xyz(group, _named(group, "well_state", "FLOAT_VECTOR"))  # (emptied, lysed, texture seed)
-    emptied = math(group, "MAXIMUM", output(state, "X"), output(chance, 0))
-    state = feed(group, add(group, "ShaderNodeCombineXYZ"), X=emptied, Y=output(state, "Y"), Z=output(state, "Z"))
-    points = _store(group, points, "well_state", state, "FLOAT_VECTOR")
     disc = add(group, "GeometryNodeMeshCircle", fill_type="NGON")
     feed(group, disc, Vertices=output(group_in, "Segments"), Radius=output(group_in, "Well Radius"))
-    instances = feed(group, add(group, "GeometryNodeInstanceOnPoints"), Points=points, Instance=disc)
+    instances = feed(group, add(group, "GeometryNodeInstanceOnPoints"), Points=output(group_in, "Geometry"), Instance=disc)
     realized = feed(group, add(group, "GeometryNodeRealizeInstances"), Geometry=instances)
     lift = add(group, "ShaderNodeCombineXYZ")
     feed(group, lift, Z=output(group_in, "Floor Height"))
@@ -146,19 +132,14 @@ def wells_group(material: bpy.types.Material) -> bpy.types.NodeTree:
 
 
 def plaques_group(material: bpy.types.Material, harmonics: int) -> bpy.types.NodeTree:
-    """Geometry nodes turning plaque-centre points into irregular discs clipped to their wells.
+    """Geometry nodes turning plaque-centre points into irregular discs clipped to their wells (the mask pass).
 
-    Each point carries ``radius``, ``softness``, ``layer`` (drawing order), ``well_center`` and the outline
-    coefficients ``fourier_a{k}``/``fourier_b{k}`` for ``k = 2 .. harmonics + 1``; the outline is
+    Each point carries ``radius``, ``layer`` (drawing order), ``well_center`` and the outline coefficients
+    ``fourier_a{k}``/``fourier_b{k}`` for ``k = 2 .. harmonics + 1``; the outline is
     ``r(t) = radius * (1 + sum_k a_k cos(k t) + b_k sin(k t))`` with ``t`` the angle in plate coordinates
-    (y down). With ``Fringe`` on, each plaque is instead a ring from its outline out to the outline grown by
-    ``Margin * softness * radius``: the part of the fuzzy edge outside the outline (image pass only). ``Core
-    Shrink`` 1 moves a disc's rim (a ring's inner edge) in by the edge's width ``softness * radius``: the image
-    pass's fully cleared cores, above the rings of every frayed edge, so that overlapping plaques clear as their
-    union does where one plaque's core meets another's edge.
-    Points beyond the well's radius are pulled back onto its circle. Discs are stacked ``Layer Step`` apart
-    (negative where the camera looks from below), starting ``Layer Offset`` steps above ``Floor Height``, in the
-    order of ``layer``, or with ``Layer By Clearness`` in that of the points' ``clearness_rank``.
+    (y down), the outline the raster renderer's ids follow. Points beyond the well's radius are pulled back onto
+    its circle. Discs are stacked ``Layer Step`` apart (negative where the camera looks from below), starting
+    ``Layer Offset`` steps above ``Floor Height``, in the order of ``layer``: later plaques on top.
     """
     group, group_in, group_out = new_group(
         "platesynth.plaques",
@@ -168,10 +149,6 @@ def plaques_group(material: bpy.types.Material, harmonics: int) -> bpy.types.Nod
             ("Floor Height", "NodeSocketFloat", 0.0),
             ("Layer Step", "NodeSocketFloat", LAYER_STEP_MM),
             ("Layer Offset", "NodeSocketFloat", 0.0),
-            ("Fringe", "NodeSocketBool", False),
-            ("Margin", "NodeSocketFloat", 0.0),
-            ("Core Shrink", "NodeSocketFloat", 0.0),
-            ("Layer By Clearness", "NodeSocketBool", False),
             ("Radius Scale", "NodeSocketFloat", 1.0),
             ("Irregularity Scale", "NodeSocketFloat", 1.0),
         ],
@@ -180,15 +157,8 @@ def plaques_group(material: bpy.types.Material, harmonics: int) -> bpy.types.Nod
     points = _store(group, output(group_in, "Geometry"), "center", position, "FLOAT_VECTOR")
     disc = add(group, "GeometryNodeMeshCircle", fill_type="TRIANGLE_FAN")
     feed(group, disc, Vertices=output(group_in, "Segments"), Radius=1.0)
-    # the fringe: a ring from radius 1 (the outline) to 2 (grown by the margin) -- not over the disc again
-    circle = add(group, "GeometryNodeMeshCircle", fill_type="NONE")
-    feed(group, circle, Vertices=output(group_in, "Segments"), Radius=1.0)
-    ring = add(group, "GeometryNodeExtrudeMesh", mode="EDGES")
-    feed(group, ring, Mesh=circle, Offset=output(add(group, "GeometryNodeInputPosition"), "Position"), Offset_Scale=1.0)
-    shape = add(group, "GeometryNodeSwitch", input_type="GEOMETRY")
-    feed(group, shape, Switch=output(group_in, "Fringe"), **{"False": disc, "True": output(ring, "Mesh")})
     radius = math(group, "MULTIPLY", _named(group, "radius"), output(group_in, "Radius Scale"))
-    instances = feed(group, add(group, "GeometryNodeInstanceOnPoints"), Points=points, Instance=shape, Scale=radius)
+    instances = feed(group, add(group, "GeometryNodeInstanceOnPoints"), Points=points, Instance=disc, Scale=radius)
     realized = feed(group, add(group, "GeometryNodeRealizeInstances"), Geometry=instances)
 
     # the outline: scale each rim point's offset from the centre by the Fourier factor at its angle
@@ -196,28 +166,14 @@ def plaques_group(material: bpy.types.Material, harmonics: int) -> bpy.types.Nod
     local = vector_math(group, "SUBTRACT", position, center)
     local_xyz = _xyz(group, local)
     angle = math(group, "ARCTAN2", math(group, "MULTIPLY", output(local_xyz, "Y"), -1.0), output(local_xyz, "X"))
-    relative = math(group, "DIVIDE", output(vector_math(group, "LENGTH", local), "Value"), radius)
-    outer = math(group, "GREATER_THAN", relative, 1.5)  # a fringe ring's outer edge
-    # the signed distance to the outline in edge widths (softness * radius), interpolated across the faces:
-    # 0 on the outline, -1/softness at the centre, Margin at a fringe's outer edge
-    softness = math(group, "MAXIMUM", _named(group, "softness"), 0.01)
-    inverse_softness = math(group, "DIVIDE", -1.0, softness)
-    # with Core Shrink, rims (a disc's rim, a ring's inner edge) move in by one edge width (at most 0.9 radius)
-    inner_rim = math(group, "MULTIPLY", math(group, "GREATER_THAN", relative, 0.5), math(group, "SUBTRACT", 1.0, outer))
-    shrink = math(group, "MULTIPLY", math(group, "MULTIPLY", math(group, "MINIMUM", softness, 0.9), output(group_in, "Core Shrink")), inner_rim)
-    signed_w = math(group, "MULTIPLY_ADD", math(group, "LESS_THAN", relative, 0.5), inverse_softness, math(group, "MULTIPLY", outer, output(group_in, "Margin")))
-    signed_w = math(group, "SUBTRACT", signed_w, math(group, "DIVIDE", shrink, softness))
-    realized = _store(group, realized, "signed_w", signed_w)
-    factor: Any = math(group, "MULTIPLY", math(group, "MULTIPLY", output(group_in, "Margin"), _named(group, "softness")), outer)
-    factor = math(group, "SUBTRACT", math(group, "ADD", factor, 1.0), shrink)
+    factor: Any = 1.0
     for k in range(2, harmonics + 2):
         kt = math(group, "MULTIPLY", angle, float(k))
         term = math(group, "MULTIPLY", _named(group, f"fourier_a{k}"), math(group, "COSINE", kt))
         term = math(group, "MULTIPLY_ADD", _named(group, f"fourier_b{k}"), math(group, "SINE", kt), term)
         factor = math(group, "MULTIPLY_ADD", term, output(group_in, "Irregularity Scale"), factor)
-    # rim and ring points at relative radius 1 (or 2, a ring's outer edge) move to the outline (plus margin)
     scaled = add(group, "ShaderNodeVectorMath", operation="SCALE")
-    feed(group, scaled, Vector=local, Scale=math(group, "DIVIDE", factor, math(group, "MAXIMUM", relative, 1e-6)))
+    feed(group, scaled, Vector=local, Scale=factor)
     outline = vector_math(group, "ADD", center, scaled)
 
     # clip to the well: points beyond the well's radius are pulled back onto its circle
@@ -228,9 +184,7 @@ def plaques_group(material: bpy.types.Material, harmonics: int) -> bpy.types.Nod
     clipped = add(group, "ShaderNodeVectorMath", operation="SCALE")
     feed(group, clipped, Vector=from_well, Scale=shrink)
     clipped_xyz = _xyz(group, vector_math(group, "ADD", well_center, clipped))
-    order = add(group, "GeometryNodeSwitch", input_type="FLOAT")
-    feed(group, order, Switch=output(group_in, "Layer By Clearness"), **{"False": _named(group, "layer"), "True": _named(group, "clearness_rank")})
-    layer = math(group, "ADD", math(group, "ADD", output(order, "Output"), output(group_in, "Layer Offset")), 1.0)
+    layer = math(group, "ADD", math(group, "ADD", _named(group, "layer"), output(group_in, "Layer Offset")), 1.0)
     height = math(group, "MULTIPLY_ADD", layer, output(group_in, "Layer Step"), output(group_in, "Floor Height"))
     final = feed(group, add(group, "ShaderNodeCombineXYZ"), X=output(clipped_xyz, "X"), Y=output(clipped_xyz, "Y"), Z=height)
     placed = feed(group, add(group, "GeometryNodeSetPosition"), Geometry=realized, Position=final)

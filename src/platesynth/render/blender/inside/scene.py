@@ -1,11 +1,12 @@
 """Build the whole Blender scene from a scene description: plate, wells, plaques, artifacts, light box or desk,
 camera and the view layer's AOVs.
 
-The description is ``{"scene": <Scene as JSON>, "view": {...}}`` (made on the host by
+The description is ``{"scene": <Scene as JSON>, "view": {...}, "textures": {...}}`` (made on the host by
 :func:`platesynth.render.blender.describe.describe_scene`). The world frame is the plate frame ``(x, -y, z)``
 in millimetres with the well floors at ``z = 0``. Everything is seen by transmission: the light box (or desk)
-glows, and the plastic, the stained monolayer, the plaques, scratches, specks and ink are thin films that
-multiply the light passing them, stacked along the camera's axis.
+glows, and the plastic, the well floors (the appearance model's texture: stain, plaques, lysis, scratches and
+specks), ink and blots are thin films that multiply the light passing them, stacked along the camera's axis. The
+plaques are geometry too, for the mask pass only, so that its AOV index masks stay exact.
 
 Objects carry the custom property ``platesynth_pass``: ``"both"`` (image and mask pass), ``"image"`` (image
 pass only) or ``"mask"``; :func:`show_pass` hides the others.
@@ -21,21 +22,18 @@ import numpy as np
 from mathutils import Matrix
 
 from platesynth.render.blender.inside import geometry, materials, plate
-from platesynth.render.look import FLOOR_TRANSMITTANCE, WALL_BAND_GAIN
-from platesynth.render.raster import plate_relief, texels_per_mm
-from platesynth.render.textures import SceneTextures, plate_grid_index, scene_textures
-from platesynth.scene.concrete import PlateGeometry, Scene
+from platesynth.render.look import (
+    BLOT_REACH,
+    FLOOR_TRANSMITTANCE,
+    FRAME_BRIGHTNESS,
+    OUTLINE_WEIGHTS,
+    OUTLINE_WIDTH_MM,
+    RULER_WIDTH_MM,
+    TOP_EDGE_OFFSET_MM,
+    WALL_BAND_GAIN,
+)
 
 PASS_PROPERTY = "platesynth_pass"
-RULER_WIDTH_MM = 22.0
-MARKS_HEIGHT_MM = 0.3
-"""Scratches and specks lie this far in front of the floors, nearer the camera than any plaque film."""
-FRINGE_BANDS = ((-1.0, 0.0), (0.0, 0.5), (0.5, 1.5))
-"""A plaque's frayed edge as rings between these signed distances to its outline, in edge widths (from the core's
-rim, one width inside, to where the raster renderer's fray of 0.2 unit-sd noise over 1.5 widths ends for noise
-up to 2.5 standard deviations). Only the film nearest the camera clears, so the inner bands of all plaques lie
-above the outer ones: where two edges overlap, the clearer one shows (the raster renderer's union clears at
-least as much)."""
 
 
 def reset() -> None:
@@ -61,28 +59,23 @@ def _with_z(xy: np.ndarray, z: float) -> np.ndarray:
 def build(description: Mapping[str, Any]) -> dict[str, bpy.types.Object]:
     """Create every object of the scene in the current (empty) Blender file; return the main ones by name."""
     scene_data, view = description["scene"], description["view"]
+    textures = {name: _plate_texture(name, entry) for name, entry in description["textures"].items()}
     plate_data = scene_data["plate"]
     well_radius = float(plate_data["well_radius_mm"])
     toward_camera = float(view["toward_camera"])
-    stain = materials.StainInputs(tuple(view["stain_linear_rgb"]), well_radius, scene_data["stain"])
-    concrete = Scene.model_validate(scene_data)
-    textures = scene_textures(concrete)
-    noise = _noise_images(textures)
-    transmittance = materials.transmittance_group()
-    stain_group = materials.stain_group(transmittance, noise)
     objects: dict[str, bpy.types.Object] = {}
 
     look = scene_data["plate_look"]
     # the plate's plastic tints and dims all light passing the plate once: in the body's material where the
-    # camera looks through the deck and walls, in the monolayer's inside the wells (no separate bottom sheet:
+    # camera looks through the deck and walls, in the floors' inside the wells (no separate bottom sheet:
     # one transparent surface less for every ray)
     plastic = (tuple(look["tint_rgb"]), float(look["transmittance"]))
 
     wells = scene_data["wells"]
-    well_attributes = _well_attributes(wells, textures.well_offsets[[plate_grid_index(concrete.plate, w["center_mm"]) for w in wells]])
+    well_attributes = _well_attributes(wells)
     well_points = geometry.point_cloud("platesynth.wells", _with_z(_world_xy([w["center_mm"] for w in wells]), 0.0), well_attributes)
-    monolayer = materials.monolayer_material(stain_group, stain, plastic[0], FLOOR_TRANSMITTANCE)
-    geometry.add_modifier(well_points, geometry.wells_group(monolayer), {"Well Radius": well_radius})
+    floors = materials.floor_material(textures["floor"], plastic[0], FLOOR_TRANSMITTANCE)
+    geometry.add_modifier(well_points, geometry.wells_group(floors), {"Well Radius": well_radius})
     objects["wells"] = _tag(well_points, "both")
 
     plate_inputs = {
@@ -97,7 +90,8 @@ def build(description: Mapping[str, Any]) -> dict[str, bpy.types.Object]:
         # behind the floors' films, the rims' and the marks' (see :mod:`.plate`)
         "Deck Height": -toward_camera * 0.45,
     }
-    body_material = materials.plastic_material("platesynth.plastic", *plastic, float(look["rim_darkness"]), _relief(concrete.plate, scene_data, view), plate_data)
+    relief = (textures["relief"], float(look["label_strength"]))
+    body_material = materials.plastic_material("platesynth.plastic", *plastic, float(look["rim_darkness"]), relief, plate_data)
     body = geometry.point_cloud("platesynth.plate_body", _with_z(_world_xy([w["center_mm"] for w in wells]), 0.0), {})
     # the deck tints the light once; the outer wall's faces only darken where they are seen edge-on
     side_material = materials.plastic_material("platesynth.plate_side", (1.0, 1.0, 1.0), 1.0, float(look["rim_darkness"]))
@@ -114,32 +108,15 @@ def build(description: Mapping[str, Any]) -> dict[str, bpy.types.Object]:
 
     _rims(scene_data, view, wells, objects)
 
+    # the plaques' outlines, later plaques on top: the mask pass only (the image shows them in the floors' texture)
     plaques = scene_data["plaques"]
     harmonics = max((len(p["fourier"]) for p in plaques), default=0)
-    plaque_attributes = _plaque_attributes(plaques, wells, well_attributes, harmonics)
-    plaque_xyz = _with_z(_world_xy([p["center_mm"] for p in plaques]), 0.0)
-    plaque_group = geometry.plaques_group(materials.plaque_material(transmittance, stain_group, stain, noise), harmonics)
+    outlines = geometry.point_cloud("platesynth.plaques", _with_z(_world_xy([p["center_mm"] for p in plaques]), 0.0), _plaque_attributes(plaques, wells, harmonics))
     step = toward_camera * geometry.LAYER_STEP_MM
-    # the masks: the outlines, later plaques on top
-    outlines = geometry.point_cloud("platesynth.plaques", plaque_xyz, plaque_attributes)
-    geometry.add_modifier(outlines, plaque_group, {"Well Radius": well_radius, "Layer Step": step})
+    geometry.add_modifier(outlines, geometry.plaques_group(materials.mask_material(), harmonics), {"Well Radius": well_radius, "Layer Step": step})
     objects["plaques"] = _tag(outlines, "mask")
-    # the image: the fully cleared cores on top, then the frayed edges as rings, the inner (clearer) bands of
-    # every plaque above the outer ones, so that where edges overlap the clearer one shows
-    n = float(len(plaques))
-    cores = bpy.data.objects.new("platesynth.plaque_cores", outlines.data)
-    bpy.context.scene.collection.objects.link(cores)
-    core_inputs = {"Layer Offset": len(FRINGE_BANDS) * n, "Core Shrink": 1.0, "Layer By Clearness": True}
-    geometry.add_modifier(cores, plaque_group, {"Well Radius": well_radius, "Layer Step": step} | core_inputs)
-    objects["plaque_cores"] = _tag(cores, "image")
-    for band, (inner, outer) in enumerate(FRINGE_BANDS):
-        fringes = bpy.data.objects.new(f"platesynth.plaque_fringes_{band}", outlines.data)
-        bpy.context.scene.collection.objects.link(fringes)
-        band_inputs = {"Fringe": True, "Core Shrink": -inner, "Margin": outer, "Layer Offset": (len(FRINGE_BANDS) - 1 - band) * n}
-        geometry.add_modifier(fringes, plaque_group, {"Well Radius": well_radius, "Layer Step": step} | band_inputs)
-        objects[f"plaque_fringes_{band}"] = _tag(fringes, "image")
 
-    _artifacts(scene_data, view, transmittance, stain, noise, wells, well_attributes, objects)
+    _marker_and_blots(scene_data, view, textures["unevenness"], objects)
     _backdrop(scene_data, view, objects)
     _camera(view)
     world = bpy.data.worlds.new("platesynth.world")
@@ -151,34 +128,17 @@ def build(description: Mapping[str, Any]) -> dict[str, bpy.types.Object]:
     return objects
 
 
-def _data_image(name: str, values: np.ndarray) -> bpy.types.Image:
-    """A 2-D float array as a packed, non-colour image (the array's row 0 at the image's bottom)."""
-    image = bpy.data.images.new(name, values.shape[1], values.shape[0], float_buffer=True, is_data=True)
-    rgba = np.repeat(np.asarray(values, dtype=np.float32)[:, :, None], 4, axis=2)
-    rgba[..., 3] = 1.0
+def _plate_texture(name: str, entry: Mapping[str, Any]) -> materials.PlateTexture:
+    """A texture of the description (``{"path": .npy, "texels_per_mm": k}``, row 0 at plate y = 0) as a packed,
+    non-colour float image whose top row is the array's row 0."""
+    values = np.load(entry["path"], allow_pickle=False)[::-1]
+    channels = values[:, :, None] if values.ndim == 2 else values
+    image = bpy.data.images.new(f"platesynth.{name}", values.shape[1], values.shape[0], float_buffer=True, is_data=True)
+    rgba = np.ones((*values.shape[:2], 4), dtype=np.float32)
+    rgba[..., :3] = channels
     image.pixels.foreach_set(rgba.ravel())
     image.pack()
-    return image
-
-
-def _noise_images(textures: SceneTextures) -> materials.NoiseImages:
-    fibre_grid = None if textures.fibre_grid is None else _data_image("platesynth.fibre_grid", textures.fibre_grid)
-    return materials.NoiseImages(
-        _data_image("platesynth.low_grid", textures.low_grid),
-        textures.low_cell_mm,
-        fibre_grid,
-        _data_image("platesynth.fine_tile", textures.fine_tile),
-        _data_image("platesynth.residual_tile", textures.residual_tile),
-    )
-
-
-def _relief(plate_geometry: PlateGeometry, scene_data: Mapping[str, Any], view: Mapping[str, Any]) -> tuple[bpy.types.Image, float, float]:
-    """The raster renderer's plate-space relief (embossed labels, label rings, frame and ribs) as a float image,
-    its texels per mm and the plate's label strength."""
-    k = texels_per_mm(1.0 / float(view["pixel_mm"]))
-    relief = plate_relief(plate_geometry, k)
-    # the relief's row 0 is at plate y = 0, the top: the lookup reads world y (up) from the image's top
-    return _data_image("platesynth.relief", relief[::-1]), k, float(scene_data["plate_look"]["label_strength"])
+    return materials.PlateTexture(image, float(entry["texels_per_mm"]))
 
 
 def _rims(
@@ -189,22 +149,24 @@ def _rims(
 ) -> None:
     """What the raster renderer draws of the walls, as films (image pass only): a slightly brighter band over
     the wall's thickness, and thin dark outlines at the wall's foot (radius, radius + wall) and top edge
-    (radius + 0.3, + wall) at their heights. Seen from below, the top edge's outlines are hidden where the
+    (``TOP_EDGE_OFFSET_MM`` further out, + wall) at their heights. Seen from below, the top edge's outlines are hidden where the
     ray has passed a well's floor (the raster renderer's ``behind_layer``)."""
     plate_data = scene_data["plate"]
     radius, wall, depth = (float(plate_data[k]) for k in ("well_radius_mm", "wall_mm", "well_depth_mm"))
     darkness = float(scene_data["plate_look"]["rim_darkness"])
     from_below = float(view["toward_camera"]) < 0
     centres = _world_xy([w["center_mm"] for w in wells])
-    line = 0.18  # mm, the raster renderer's outline width
+    line = OUTLINE_WIDTH_MM
+    foot_inner, foot_outer, top_inner, top_outer = OUTLINE_WEIGHTS
+    top = radius + TOP_EDGE_OFFSET_MM
     # just behind the floors' film, each ring at its own height: overlapping films must not coincide
     step = -float(view["toward_camera"]) * 0.05
     rings = [  # inner radius, outer radius, height, colour, hidden behind the floors
         (radius, radius + wall, step, 1.0 + WALL_BAND_GAIN, False),
-        (radius - line / 2, radius + line / 2, 2 * step, 1.0 - 0.5 * darkness, False),
-        (radius + wall - line / 2, radius + wall + line / 2, 3 * step, 1.0 - darkness, False),
-        (radius + 0.3 - line / 2, radius + 0.3 + line / 2, depth - 0.05, 1.0 - 0.35 * darkness, from_below),
-        (radius + 0.3 + wall - line / 2, radius + 0.3 + wall + line / 2, depth - 0.05, 1.0 - 0.5 * darkness, from_below),
+        (radius - line / 2, radius + line / 2, 2 * step, 1.0 - foot_inner * darkness, False),
+        (radius + wall - line / 2, radius + wall + line / 2, 3 * step, 1.0 - foot_outer * darkness, False),
+        (top - line / 2, top + line / 2, depth - 0.05, 1.0 - top_inner * darkness, from_below),
+        (top + wall - line / 2, top + wall + line / 2, depth - 0.05, 1.0 - top_outer * darkness, from_below),
     ]
     n = len(centres)
     rims = geometry.annuli(
@@ -223,39 +185,24 @@ def _rims(
     objects["rims"] = _tag(rims, "image")
 
 
-def _well_attributes(wells: Sequence[Mapping[str, Any]], well_offsets: np.ndarray) -> dict[str, np.ndarray]:
-    """The wells' point attributes (:data:`materials.WELL_VECTORS`); ``well_offsets[i]``: well ``i``'s shift into the noise tiles."""
-    stains = [w["stain"] for w in wells]
-    centres = _with_z(_world_xy([w["center_mm"] for w in wells]), 0.0)
-    attributes: dict[str, np.ndarray] = {
+def _well_attributes(wells: Sequence[Mapping[str, Any]]) -> dict[str, np.ndarray]:
+    """The wells' point attributes: their ids (for the mask pass) and centres."""
+    return {
         "well_id": np.array([w["id"] for w in wells], dtype=np.int32),
-        "well_center": centres,
-        "well_stain": np.array([[s["density"], s["centre_gradient"], s["drying_detail"]] for s in stains], dtype=np.float64).reshape(-1, 3),
-        "well_state": np.array([[float(w["emptied"]), float(w["lysed"]), 0.0] for w in wells], dtype=np.float64).reshape(-1, 3),
-        "well_centre": np.array([[*s["centre_offset_mm"], s["centre_angle_deg"]] for s in stains], dtype=np.float64).reshape(-1, 3),
-        "well_noise": _with_z(np.asarray(well_offsets, dtype=np.float64).reshape(-1, 2), 0.0),
+        "well_center": _with_z(_world_xy([w["center_mm"] for w in wells]), 0.0),
     }
-    return attributes
 
 
-def _per_well(well_ids: Sequence[int], wells: Sequence[Mapping[str, Any]], well_attributes: Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:
-    """The well attributes repeated for items lying in the wells ``well_ids`` (the stain under them)."""
-    row_of_well = {w["id"]: i for i, w in enumerate(wells)}
-    rows = np.array([row_of_well[i] for i in well_ids], dtype=np.int64)
-    return {name: values[rows] for name, values in well_attributes.items()}
-
-
-def _plaque_attributes(plaques: Sequence[Mapping[str, Any]], wells: Sequence[Mapping[str, Any]], well_attributes: Mapping[str, np.ndarray], harmonics: int) -> dict[str, np.ndarray]:
-    attributes: dict[str, np.ndarray] = _per_well([p["well"] for p in plaques], wells, well_attributes)
-    attributes |= {
+def _plaque_attributes(plaques: Sequence[Mapping[str, Any]], wells: Sequence[Mapping[str, Any]], harmonics: int) -> dict[str, np.ndarray]:
+    """The plaques' point attributes: ids (the plaque's and, for the mask pass, its well's), radii, drawing
+    order, their well's centre and outline harmonics."""
+    centre_of_well = {w["id"]: w["center_mm"] for w in wells}
+    attributes: dict[str, np.ndarray] = {
         "plaque_id": np.array([p["id"] for p in plaques], dtype=np.int32),
+        "well_id": np.array([p["well"] for p in plaques], dtype=np.int32),
         "radius": np.array([p["radius_mm"] for p in plaques], dtype=np.float64),
-        "softness": np.array([p["softness"] for p in plaques], dtype=np.float64),
-        "clearness": np.array([p["clearness"] for p in plaques], dtype=np.float64),
         "layer": np.arange(len(plaques), dtype=np.float64),
-        # the clearest plaques' cores nearest the camera: where cores overlap, the clearest shows (the raster
-        # renderer's union clears at least that much)
-        "clearness_rank": np.argsort(np.argsort([p["clearness"] for p in plaques], kind="stable"), kind="stable").astype(np.float64),
+        "well_center": _with_z(_world_xy([centre_of_well[p["well"]] for p in plaques]), 0.0),
     }
     for k in range(harmonics):
         for which, name in ((0, "a"), (1, "b")):
@@ -263,50 +210,17 @@ def _plaque_attributes(plaques: Sequence[Mapping[str, Any]], wells: Sequence[Map
     return attributes
 
 
-def _artifacts(
-    scene_data: Mapping[str, Any],
-    view: Mapping[str, Any],
-    transmittance: bpy.types.NodeTree,
-    stain: materials.StainInputs,
-    noise: materials.NoiseImages,
-    wells: Sequence[Mapping[str, Any]],
-    well_attributes: Mapping[str, np.ndarray],
-    objects: dict[str, bpy.types.Object],
+def _marker_and_blots(
+    scene_data: Mapping[str, Any], view: Mapping[str, Any], unevenness: materials.PlateTexture, objects: dict[str, bpy.types.Object]
 ) -> None:
-    """Scratches and specks on the monolayer, marker ink and blots on the plastic (image pass only)."""
+    """Marker ink and blots on the plastic (image pass only)."""
     artifacts = scene_data["artifacts"]
     away = -float(view["toward_camera"])
-    lines, halves, owners, clearing, extra = [], [], [], [], []
-    for scratch in artifacts["scratches"]:
-        lines.append(_world_xy(scratch["points_mm"]))
-        halves.append(0.5 * scratch["width_mm"])
-        owners.append(scratch["well"])
-        clearing.append(0.95)
-        extra.append(0.0)
-    for speck in artifacts["debris"]:
-        angle = np.radians(speck["angle_deg"])
-        half = 0.5 * max(speck["length_mm"] - speck["width_mm"], 0.0)
-        centre = np.asarray(speck["center_mm"], dtype=np.float64)
-        direction = np.array([np.cos(angle), np.sin(angle)])
-        lines.append(_world_xy([centre - half * direction, centre + half * direction]))
-        halves.append(0.5 * speck["width_mm"])
-        owners.append(speck["well"])
-        clearing.append(0.0)
-        extra.append(speck["darkness"])
-    if lines:
-        attributes = _per_well(owners, wells, well_attributes) | {"mark_clearing": np.array(clearing), "mark_extra": np.array(extra)}
-        # in front of the plaques: under a mark no plaque clears (only the nearest film clears), so a scratch
-        # over a plaque clears once instead of twice
-        marks = geometry.strips("platesynth.marks", lines, halves, -away * MARKS_HEIGHT_MM, attributes)
-        marks.data.materials.append(materials.marks_material(transmittance, stain))
-        objects["marks"] = _tag(marks, "image")
-
-    ink = materials.ink_material()
     strokes = artifacts["marker"]
     if strokes:
         colours = np.array(view["marker_linear_rgb"], dtype=np.float64).reshape(-1, 3)
         pen = geometry.strips("platesynth.marker", [_world_xy(s["points_mm"]) for s in strokes], [0.5 * s["width_mm"] for s in strokes], away * 0.6, {"ink": colours})
-        pen.data.materials.append(ink)
+        pen.data.materials.append(materials.ink_material())
         objects["marker"] = _tag(pen, "image")
     blots = artifacts["blots"]
     if blots:
@@ -318,9 +232,8 @@ def _artifacts(
             "blot_rgb": np.array([b["color_rgb"] for b in blots], dtype=np.float64).reshape(-1, 3),
             "blot_opacity": np.array([b["opacity"] for b in blots], dtype=np.float64),
         }
-        # the raster renderer's Gaussian smudge reaches twice the blot's radius
-        smudges = geometry.discs("platesynth.blots", centres, 2.0 * radii, away * 0.65, attributes)
-        smudges.data.materials.append(materials.blot_material(noise))
+        smudges = geometry.discs("platesynth.blots", centres, BLOT_REACH * radii, away * 0.65, attributes)
+        smudges.data.materials.append(materials.blot_material(unevenness))
         objects["blots"] = _tag(smudges, "image")
 
 
@@ -378,7 +291,7 @@ def _backdrop(scene_data: Mapping[str, Any], view: Mapping[str, Any], objects: d
     panel = materials.glow_material("platesynth.lightbox_panel", (1.0, 1.0, 1.0), float(background["brightness"]), panel=(left, top, right, bottom))
     # UV = the box's own frame (mm from the plate's centre along the image axes), for the glow's falloff
     objects["panel"] = _quad("platesynth.lightbox_panel", view, (left, top, right, bottom), 0.5, panel, (1.0, 0.0, 0.0, 0.0, 1.0, 0.0))
-    frame = materials.glow_material("platesynth.lightbox_frame", (1.0, 1.0, 1.0), 0.55)
+    frame = materials.glow_material("platesynth.lightbox_frame", (1.0, 1.0, 1.0), FRAME_BRIGHTNESS)
     objects["frame"] = _quad("platesynth.lightbox_frame", view, (left - frame_mm, top - frame_mm, right + frame_mm, bottom + frame_mm), 1.0, frame)
     desk = materials.glow_material("platesynth.desk", desk_rgb, 1.0, float(background["texture"]), seed)
     objects["desk"] = _quad("platesynth.desk", view, (-far, -far, far, far), 2.0, desk)
