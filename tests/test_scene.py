@@ -41,11 +41,11 @@ def test_presets_load_and_sample_json_roundtrip(preset):
 # sha256 of sample_scene(load_config(preset), 3).model_dump_json(): sampling must not change without intent (a change
 # here changes every dataset rendered from these presets). Update only for a deliberate change of the sampling.
 SCENE_SHA256_SEED3 = {
-    "diverse": "00757d1db23126eb3d374a079afa33411a96076ac6cf754bd9d0aef9df32b3e2",
-    "high": "c3cb4610d5823b5a9f01773c77279ad9e61a401f24565207f0c6bf0fba30b47a",
-    "lightbox12": "496697f837ac2e0a09d37c6e8e977eb3cb0651934bd0c9391cac7c497de0be59",
-    "low": "bc01d56960e4d6919e583170f720857c1cd38ab9f3a12e17b9f825e78084a4c0",
-    "medium": "48b33cf47fae0efeae83a1d035e5877ef00606d6555714df73a1c5e6690794e8",
+    "diverse": "920ab96156a344bb4eec680b2ba93238e15cf22ef262df922147be0eb65dbd84",
+    "high": "579fc957b9e65cbf1fa4d86589fafecd0dc2e9a06c71de876bc6a1b3e6f05896",
+    "lightbox12": "aab5845ef152e9e17bc488fdcbe33f3e1522f942be5df9e386c179e022a59634",
+    "low": "213691a0c56b54fddca8e1a39e9b130952200962845a1a9d6aeaecd3d9a9deb2",
+    "medium": "998d25733a65947ea6642d04f0516bbdc2292be2e5f298090da360e03a5a2752",
 }
 
 

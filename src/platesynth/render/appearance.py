@@ -67,13 +67,14 @@ LYSED_RIM_LOSS, LYSED_RIM_MM = 0.7, 1.5
 
 # ---- plaques
 EDGE_SPAN = 1.5
-"""A plaque's clearing falls from full to none over this many edge widths, centred on its outline."""
-FRAY_AMPLITUDE = 0.2
-"""How far the fray noise (unit sd) shifts the edge's clearing ramp, as a share of the ramp."""
+"""A plaque's clearing falls from full to none over this many edge widths, centred on its outline; the fray noise
+(unit sd, times ``plaque_look.fray``) shifts that ramp."""
 FRAY_ROWS_PER_PLAQUE = 7.37
 """Each plaque reads the fray tile this many rows further along, so that neighbours fray differently."""
-CORE_DIP, CORE_DIP_SHARPNESS = 0.02, 3.0
-"""A plaque's centre clears a little less: ``1 - CORE_DIP * exp(-SHARPNESS * (r / R)**2)``."""
+CORE_DIP_SHARPNESS = 3.0
+"""A plaque's centre clears less by ``plaque_look.centre_residual * exp(-SHARPNESS * (r / R)**2)``."""
+RIM_BAND = 0.35
+"""The darker rim is a Gaussian band this many edge widths wide (sd) on the outline."""
 RESIDUAL_MEAN, RESIDUAL_SPREAD, RESIDUAL_MAX = 0.03, 0.03, 0.2
 """Share of the stain left inside a cleared plaque: mean, noise amplitude (unit-sd residual tile) and cap."""
 
@@ -216,13 +217,16 @@ def monolayer_density(u, v, du, dv, dist, radius, well, stain, low_grid, fibre_g
 
 
 @njit(cache=True, nogil=True, inline="always")
-def changed_density(density, u, v, well, clearing, scratched, speck, residual_tile):
-    """``density`` cleared by plaques (``clearing`` 0..1, with the residual stain left inside), scraped by
-    scratches (``scratched`` 0..1) and darkened by specks (``speck``, added density)."""
+def changed_density(density, u, v, well, clearing, rim, scratched, speck, residual_tile):
+    """``density`` cleared by plaques (``clearing`` 0..1, with the residual stain left inside), thickened along
+    their rims (``rim``, relative), scraped by scratches (``scratched`` 0..1) and darkened by specks (``speck``,
+    added density)."""
     if clearing > 0.0:
         residual = tile_sample(residual_tile, (u + well.noise_y) / RESIDUAL_CELL_MM, (v + well.noise_x) / RESIDUAL_CELL_MM)
         residual = min(max(RESIDUAL_MEAN + RESIDUAL_SPREAD * residual, 0.0), RESIDUAL_MAX)
         density *= 1.0 - clearing * (1.0 - residual)
+    if rim > 0.0:
+        density *= 1.0 + rim
     return density * (1.0 - scratched) + speck
 
 
@@ -238,12 +242,15 @@ def stain_transmittance(density, stain):
 
 
 @njit(cache=True, nogil=True)
-def draw_plaques(hinv, plaques, fourier, boxes, pixel_mm, from_below, top_radius, fuzz_tile, clear, ids):
+def draw_plaques(hinv, plaques, fourier, boxes, pixel_mm, from_below, top_radius, fuzz_tile, fray, centre_residual,
+                 halo, halo_width, rim, clear, rim_density, ids):
     """Draw plaques in order (later ones on top).
 
-    ``plaques``: :data:`PLAQUE_DTYPE` rows (mm); ``fourier[p, k] = (a, b)`` for harmonic ``k + 2``. ``clear``
-    (float32) receives the union of the plaques' clearing (0..1): a fuzzy edge centred on the outline, frayed by
-    ``fuzz_tile`` noise, and a slightly less cleared centre. ``ids`` (uint16) receives ``p + 1`` where the pixel
+    ``plaques``: :data:`PLAQUE_DTYPE` rows (mm); ``fourier[p, k] = (a, b)`` for harmonic ``k + 2``; ``fray``,
+    ``centre_residual``, ``halo``, ``halo_width`` and ``rim``: the plate's :class:`~platesynth.scene.PlaqueLook`.
+    ``clear`` (float32) receives the union of the plaques' clearing (0..1): a soft edge centred on the outline,
+    frayed by ``fuzz_tile`` noise, a paler centre and a soft halo outside; ``rim_density`` (float32) the largest
+    relative density added by a darker rim along an outline. ``ids`` (uint16) receives ``p + 1`` where the pixel
     centre lies inside plaque ``p``'s outline and inside the visible interior of its well.
     """
     n_harmonics = fourier.shape[1]
@@ -254,7 +261,10 @@ def draw_plaques(hinv, plaques, fourier, boxes, pixel_mm, from_below, top_radius
         for k in range(n_harmonics):
             amplitude += abs(fourier[p, k, 0]) + abs(fourier[p, k, 1])
         width = max(edge, pixel_mm)
+        halo_mm = halo_width * radius
         reach = radius * (1.0 + amplitude) + EDGE_SPAN * width
+        if halo > 0.0:
+            reach += 3.0 * halo_mm
         noise_dx = FRAY_ROWS_PER_PLAQUE * p
         y0, y1, x0, x1 = boxes[p, 0], boxes[p, 1], boxes[p, 2], boxes[p, 3]
         for y in range(y0, y1):
@@ -285,17 +295,24 @@ def draw_plaques(hinv, plaques, fourier, boxes, pixel_mm, from_below, top_radius
                         in_well = tu * tu + tv * tv < top_radius * top_radius
                     if in_well:
                         ids[y, x] = p + 1
+                if rim > 0.0:
+                    band = signed / (RIM_BAND * width)
+                    darker = rim * math.exp(-0.5 * band * band)
+                    if darker > rim_density[y, x]:
+                        rim_density[y, x] = darker
                 # radial fibres: noise that varies quickly around the plaque and slowly along its radius
                 around = math.atan2(dv, du) * (fuzz_tile.shape[1] / (2.0 * math.pi))
-                fray = tile_sample(fuzz_tile, around, dist / FUZZ_CELL_MM + noise_dx)
-                t = 0.5 - signed / (EDGE_SPAN * width) + FRAY_AMPLITUDE * fray
-                if t <= 0.0:
-                    continue
-                if t > 1.0:
-                    t = 1.0
-                inner = dist / (radius * outline)
-                c = clearness * t * t * (3.0 - 2.0 * t) * (1.0 - CORE_DIP * math.exp(-CORE_DIP_SHARPNESS * inner * inner))
-                clear[y, x] = 1.0 - (1.0 - clear[y, x]) * (1.0 - c)
+                t = 0.5 - signed / (EDGE_SPAN * width) + fray * tile_sample(fuzz_tile, around, dist / FUZZ_CELL_MM + noise_dx)
+                c = 0.0
+                if t > 0.0:
+                    if t > 1.0:
+                        t = 1.0
+                    inner = dist / (radius * outline)
+                    c = clearness * t * t * (3.0 - 2.0 * t) * (1.0 - centre_residual * math.exp(-CORE_DIP_SHARPNESS * inner * inner))
+                if halo > 0.0 and signed > 0.0:
+                    c = max(c, halo * clearness * math.exp(-signed / halo_mm))
+                if c > 0.0:
+                    clear[y, x] = 1.0 - (1.0 - clear[y, x]) * (1.0 - c)
 
 
 @njit(cache=True, nogil=True)
@@ -378,12 +395,14 @@ class WellContent:
     Attributes
     ----------
     clearing : (H, W) float32, the union of the plaques' clearing (0..1).
+    rim : (H, W) float32, the relative density added along the plaques' outlines.
     plaque_ids : (H, W) uint16, ``p + 1`` inside plaque ``p``'s outline (scene order; later plaques on top).
     scratched : (H, W) float32, the share of the stain scraped off by scratches.
     specks : (H, W) float32, the density added by dark specks.
     """
 
     clearing: np.ndarray
+    rim: np.ndarray
     plaque_ids: np.ndarray
     scratched: np.ndarray
     specks: np.ndarray
@@ -400,19 +419,23 @@ def draw_well_content(
     """Draw the plaques, scratches and specks of ``scene`` on ``grid`` (wells in plate row-major order, their
     walls' top edges at ``top_centres`` with ``top_radius``, for the plaque ids seen from above)."""
     shape = (grid.height, grid.width)
-    content = WellContent(np.zeros(shape, np.float32), np.zeros(shape, np.uint16), np.zeros(shape, np.float32),
-                          np.zeros(shape, np.float32))
+    content = WellContent(np.zeros(shape, np.float32), np.zeros(shape, np.float32), np.zeros(shape, np.uint16),
+                          np.zeros(shape, np.float32), np.zeros(shape, np.float32))
     pixel_mm = 1.0 / grid.px_per_mm
     if scene.plaques:
         plaques, fourier = plaque_table(scene, wells, top_centres)
+        look = scene.plaque_look
         reach = plaques["radius"] * (1.0 + np.abs(fourier).sum(axis=(1, 2))) + EDGE_SPAN * np.maximum(
             plaques["edge_width"], pixel_mm) + pixel_mm
+        if look.halo > 0:
+            reach = reach + 3.0 * look.halo_width * plaques["radius"]
         centres = np.stack([plaques["cx"], plaques["cy"]], axis=1)
         signs = np.array([[-1, -1], [1, -1], [1, 1], [-1, 1]], dtype=np.float64)
         corners = centres[:, None, :] + signs[None] * reach[:, None, None]
         boxes = boxes_from_extents(grid.project(corners), grid.height, grid.width)
         draw_plaques(grid.px_to_plate, plaques, fourier, boxes, pixel_mm, scene.camera.from_below, top_radius,
-                     textures.fine_tile, content.clearing, content.plaque_ids)
+                     textures.fine_tile, look.fray, look.centre_residual, look.halo, look.halo_width, look.rim,
+                     content.clearing, content.rim, content.plaque_ids)
     art = scene.artifacts
     segments = [(*a, *b, 0.5 * s.width_mm) for s in art.scratches for a, b in zip(s.points_mm[:-1], s.points_mm[1:])]
     if segments:
@@ -442,7 +465,7 @@ def _capsules(grid: Sampling, segments: np.ndarray, values: np.ndarray, out: np.
 
 @njit(cache=True, nogil=True, parallel=True, fastmath=True)
 def _bake_floor(texel_mm, a1x, a1y, pitch, rows, cols, radius, wells, stain, low_grid, fibre_grid, fine_tile,
-                residual_tile, clearing, scratched, specks, out):
+                residual_tile, clearing, rim, scratched, specks, out):
     height, width = out.shape[0], out.shape[1]
     margin = 2.0 * texel_mm
     for y in prange(height):
@@ -461,7 +484,8 @@ def _bake_floor(texel_mm, a1x, a1y, pitch, rows, cols, radius, wells, stain, low
                 out[y, x, 2] = 1.0
                 continue
             density = monolayer_density(u, v, du, dv, dist, radius, well, st, low_grid, fibre_grid, fine_tile)
-            density = changed_density(density, u, v, well, clearing[y, x], scratched[y, x], specks[y, x], residual_tile)
+            density = changed_density(density, u, v, well, clearing[y, x], rim[y, x], scratched[y, x], specks[y, x],
+                                      residual_tile)
             r, g, b = stain_transmittance(density, st)
             out[y, x, 0] = r
             out[y, x, 1] = g
@@ -521,5 +545,5 @@ def floor_transmittance(scene: Scene, texels_per_mm: float, textures: SceneTextu
     _bake_floor(1.0 / grid.px_per_mm, plate.a1_x_mm, plate.a1_y_mm, plate.pitch_mm, plate.rows, plate.cols,
                 plate.well_radius_mm, well_table(wells, centres, textures.well_offsets), stain_table(scene, textures),
                 textures.low_grid, fibre_grid_or_empty(textures), textures.fine_tile, textures.residual_tile,
-                content.clearing, content.scratched, content.specks, out)
+                content.clearing, content.rim, content.scratched, content.specks, out)
     return out

@@ -185,7 +185,7 @@ def render_raster(scene: Scene, size: tuple[int, int] = (1024, 768)) -> RenderRe
         appearance.well_table(wells, top_centres, textures.well_offsets), appearance.stain_table(scene, textures),
         plate_relief(scene.plate, k), marker_ink(scene, k), k, textures.low_grid,
         appearance.fibre_grid_or_empty(textures), desk_grid, desk_cell_px, textures.fine_tile,
-        textures.residual_tile, content.clearing, content.scratched, content.specks, light_gains(scene),
+        textures.residual_tile, content.clearing, content.rim, content.scratched, content.specks, light_gains(scene),
         gamma_lut(), image, wells_mask,
     )
     sigma = scene.camera.defocus_px * width / REFERENCE_WIDTH

@@ -125,7 +125,8 @@ class PlaquesConfig(Section):
     dilution_factor: Dist = number({"choice": [10, 5, 3], "weights": [0.7, 0.2, 0.1]}, 1.0, 100.0, "",
                                    "dilution from one column to the next")
     reverse_series: float = probability(0.0, "chance the series runs from the last column to the first")
-    lysis_count: Dist = number([120, 300], 1, 100000, "plaques", "mean count above which a well is lysed")
+    lysis_count: Dist = number([90, 130], 1, 100000, "plaques",
+                               "mean count above which a well is lysed (a person calls it uncountable)")
     radius_mm: Dist = number({"loguniform": [0.35, 1.5]}, 0.05, 10.0, "mm", "median plaque radius of the plate")
     radius_spread: Dist = number([0.2, 0.45], 0.0, 2.0, "", "sd of log radius within the plate")
     irregularity: Dist = number([0.02, 0.08], 0.0, 0.5, "", "amplitude of the outline's Fourier harmonics")
@@ -140,6 +141,11 @@ class PlaquesConfig(Section):
                                   "fall-off of the outline harmonics: amplitude of order k is irregularity / k^decay")
     softness_factor: Dist = number([0.8, 1.25], 0.0, 5.0, "", "each plaque's factor on softness")
     clearness_factor: Dist = number([0.9, 1.1], 0.0, 5.0, "", "each plaque's factor on clearness (capped at 1)")
+    fray: Dist = number(0.2, 0.0, 1.0, "", "how much radial fibres shift a plaque's edge (0: a smooth soft disc)")
+    centre_residual: Dist = number(0.02, 0.0, 0.9, "", "share of the clearing a plaque's centre lacks (paler centre)")
+    halo: Dist = number(0.0, 0.0, 1.0, "", "clearing of the soft halo just outside a plaque's outline")
+    halo_width: Dist = number(0.5, 0.01, 3.0, "", "reach of the halo beyond the outline, fraction of the radius")
+    rim: Dist = number(0.0, 0.0, 3.0, "", "extra stain density along a plaque's outline (a thin darker rim)")
 
 
 class ArtifactsConfig(Section):

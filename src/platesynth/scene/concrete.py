@@ -115,6 +115,17 @@ class Plaque(_Concrete):
     clearness: float = Field(description="fraction of the stain removed inside, 0..1")
 
 
+class PlaqueLook(_Concrete):
+    """How the plate's plaques look (the defaults are the first model's look: frayed, fully cleared discs)."""
+
+    fray: float = Field(0.2, description="how much radial fibres shift a plaque's edge, share of the edge's ramp")
+    centre_residual: float = Field(0.02, description="share of the clearing a plaque's centre lacks (a paler, "
+                                   "translucent centre)")
+    halo: float = Field(0.0, description="clearing of the soft halo just outside a plaque's outline")
+    halo_width: float = Field(0.5, description="reach of the halo beyond the outline, share of the radius")
+    rim: float = Field(0.0, description="extra stain density on a thin band along a plaque's outline (a darker rim)")
+
+
 class Scratch(_Concrete):
     """A pipette scratch: a curved streak where the cells were scraped off."""
 
@@ -233,6 +244,7 @@ class Scene(_Concrete):
     stain: Stain
     wells: tuple[Well, ...]
     plaques: tuple[Plaque, ...]
+    plaque_look: PlaqueLook = PlaqueLook()
     artifacts: Artifacts
     background: Background
     lighting: Lighting

@@ -26,6 +26,7 @@ from platesynth.scene.concrete import (
     Lighting,
     MarkerStroke,
     Plaque,
+    PlaqueLook,
     PlateGeometry,
     PlateLook,
     PostProcessing,
@@ -302,6 +303,8 @@ def sample_scene(config: SceneConfig, seed: int) -> Scene:
     )
     post = _sample_post(c, rng)
     texture_seed = int(rng.integers(0, 2**31 - 1))
+    # drawn last, so that adding it left every earlier draw as it was
+    plaque_look = PlaqueLook(**{name: c.plaques.draw(name, rng) for name in PlaqueLook.model_fields})
     return Scene(
         seed=texture_seed,
         plate=plate,
@@ -309,6 +312,7 @@ def sample_scene(config: SceneConfig, seed: int) -> Scene:
         stain=stain,
         wells=tuple(wells),
         plaques=tuple(plaques),
+        plaque_look=plaque_look,
         artifacts=Artifacts(scratches=tuple(scratches), marker=tuple(marker), blots=tuple(blots), debris=tuple(debris)),
         background=background,
         lighting=lighting,

@@ -1,0 +1,88 @@
+"""The appearance model: the well content both renderers draw, and the plaque look's parameters."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from platesynth.render import appearance
+from platesynth.render.textures import scene_textures
+from platesynth.scene import Plaque, PlaqueLook, load_config, sample_scene
+
+TEXELS_PER_MM = 20.0
+
+
+@pytest.fixture(scope="module")
+def base_scene():
+    scene = sample_scene(load_config("high", overrides={"plaques.negative_plate": 1.0}), 4)
+    well = scene.wells[5]
+    plaque = Plaque(id=1, well=well.id, center_mm=well.center_mm, radius_mm=1.0, fourier=(), softness=0.2, clearness=1.0)
+    return scene.model_copy(update={"plaques": (plaque,)}), well
+
+
+def clearing_profile(scene, well, look: PlaqueLook) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Clearing and rim density along a ray from the plaque's centre (distance in mm)."""
+    scene = scene.model_copy(update={"plaque_look": look})
+    grid = appearance.texel_grid(scene, TEXELS_PER_MM)
+    wells = appearance.wells_by_grid(scene)
+    centres = np.array([w.center_mm for w in wells])
+    content = appearance.draw_well_content(scene, grid, wells, centres, scene.plate.well_radius_mm, scene_textures(scene))
+    row = int(well.center_mm[1] * TEXELS_PER_MM)
+    columns = np.arange(int(well.center_mm[0] * TEXELS_PER_MM), int((well.center_mm[0] + 3.0) * TEXELS_PER_MM))
+    distance = (columns + 0.5) / TEXELS_PER_MM - well.center_mm[0]
+    return distance, content.clearing[row, columns], content.rim[row, columns]
+
+
+def test_defaults_are_the_first_models_look(base_scene):
+    scene, well = base_scene
+    distance, clearing, rim = clearing_profile(scene, well, PlaqueLook())
+    assert clearing[distance < 0.5].min() > 0.95  # a nearly fully cleared core (2 % dip at the centre)
+    assert clearing[distance > 1.4].max() == 0.0  # nothing beyond the edge's ramp
+    assert not rim.any()
+
+
+def test_halo_clears_beyond_the_edge(base_scene):
+    scene, well = base_scene
+    distance, clearing, _ = clearing_profile(scene, well, PlaqueLook(fray=0.0, halo=0.3, halo_width=0.5))
+    outside = (distance > 1.5) & (distance < 1.6)
+    # the halo's clearing at ~0.55 mm beyond the outline: 0.3 * exp(-0.55 / 0.5) = 0.10
+    assert clearing[outside].mean() == pytest.approx(0.3 * np.exp(-0.55 / 0.5), abs=0.02)
+
+
+def test_centre_residual_makes_a_paler_centre(base_scene):
+    scene, well = base_scene
+    distance, clearing, _ = clearing_profile(scene, well, PlaqueLook(fray=0.0, centre_residual=0.4))
+    assert clearing[0] == pytest.approx(0.6, abs=0.01)  # 1 - 0.4 at the centre
+    assert clearing[(distance > 0.7) & (distance < 0.8)].mean() > 0.8
+
+
+def test_rim_is_a_band_on_the_outline(base_scene):
+    scene, well = base_scene
+    distance, _, rim = clearing_profile(scene, well, PlaqueLook(fray=0.0, rim=0.5))
+    assert rim.max() == pytest.approx(0.5, abs=0.01)
+    assert abs(distance[np.argmax(rim)] - 1.0) < 0.06  # on the outline (radius 1 mm)
+    assert rim[distance < 0.5].max() < 0.01
+
+
+def test_fray_zero_gives_a_round_edge(base_scene):
+    scene, well = base_scene
+    scene = scene.model_copy(update={"plaque_look": PlaqueLook(fray=0.0)})
+    grid = appearance.texel_grid(scene, TEXELS_PER_MM)
+    wells = appearance.wells_by_grid(scene)
+    centres = np.array([w.center_mm for w in wells])
+    clearing = appearance.draw_well_content(scene, grid, wells, centres, 99.0, scene_textures(scene)).clearing
+    ys, xs = np.nonzero(clearing > 0.5)
+    radii = np.hypot((xs + 0.5) / TEXELS_PER_MM - well.center_mm[0], (ys + 0.5) / TEXELS_PER_MM - well.center_mm[1])
+    assert radii.max() - 1.0 < 0.08  # the half-clearing contour is the outline, within about a texel
+
+
+def test_floor_texture_is_the_raster_renderers_stain(base_scene):
+    """Blender's floor texture: the plaque's core passes far more light than the stain beside it, outside the
+    wells the texture is clear."""
+    scene, well = base_scene
+    floor = appearance.floor_transmittance(scene.model_copy(update={"plaque_look": PlaqueLook()}), TEXELS_PER_MM)
+    row, col = (int(c * TEXELS_PER_MM) for c in well.center_mm[::-1])
+    core, stained = floor[row, col], floor[row, col + int(5 * TEXELS_PER_MM)]
+    assert core.mean() > stained.mean() + 0.3
+    assert np.all(core >= stained)
+    assert floor[0, 0].tolist() == [1.0, 1.0, 1.0]
