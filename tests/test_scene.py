@@ -41,11 +41,11 @@ def test_presets_load_and_sample_json_roundtrip(preset):
 # sha256 of sample_scene(load_config(preset), 3).model_dump_json(): sampling must not change without intent (a change
 # here changes every dataset rendered from these presets). Update only for a deliberate change of the sampling.
 SCENE_SHA256_SEED3 = {
-    "diverse": "920ab96156a344bb4eec680b2ba93238e15cf22ef262df922147be0eb65dbd84",
-    "high": "579fc957b9e65cbf1fa4d86589fafecd0dc2e9a06c71de876bc6a1b3e6f05896",
-    "lightbox12": "aab5845ef152e9e17bc488fdcbe33f3e1522f942be5df9e386c179e022a59634",
-    "low": "213691a0c56b54fddca8e1a39e9b130952200962845a1a9d6aeaecd3d9a9deb2",
-    "medium": "998d25733a65947ea6642d04f0516bbdc2292be2e5f298090da360e03a5a2752",
+    "diverse": "8e8371e0d636643bc8d1496e103794caaedae90202efac1ccb784834a5ced813",
+    "high": "850501973318765aabccb15cbd89adb9b84ab30f6ae69f26ffbf25750eae6568",
+    "lightbox12": "8212fafc04298e5c04c25e50efba44b624ea3e979df141fe754ad51e9e91fa9f",
+    "low": "a89a0d79ad64f921b0c096a4cb5da98598df97b34238bdb83656f7960e8df72d",
+    "medium": "c83460e0a5fb731d6ac8c3ea8e7c1ec68b108f564dc7058a0451c83f631f38ab",
 }
 
 

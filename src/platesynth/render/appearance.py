@@ -33,6 +33,7 @@ from platesynth.render.textures import (
     FIBRE_CELL_MM,
     FINE_CELL_MM,
     FUZZ_CELL_MM,
+    MOTTLE_CELL_MM,
     RESIDUAL_CELL_MM,
     SceneTextures,
     plate_grid_index,
@@ -50,6 +51,10 @@ RIM_REACH = 8.0
 """...and not computed beyond this many ``rim_clearing_mm`` from the rim."""
 DRYING_GAIN = 2.0
 """The drying texture (unit-sd fine tile) changes the density by ``DRYING_GAIN * drying_detail`` per sd."""
+MOTTLE_COVER = 0.5
+"""Share of the mottled band's area covered by paler patches (the mottle tile above its median)..."""
+MOTTLE_EDGE = 0.35
+"""...with patch edges this soft (unit-sd noise over which a patch fades in)."""
 
 # ---- what a lysed well keeps
 LYSED_CLOUD_CENTRE, LYSED_CLOUD_NOISE = 0.55, 0.25
@@ -111,6 +116,8 @@ STAIN_DTYPE = np.dtype(
         ("elongation", np.float64),
         ("rim_clearing_mm", np.float64),
         ("translucency", np.float64),
+        ("rim_mottle", np.float64),
+        ("rim_mottle_mm", np.float64),
         ("absorbance_r", np.float64),  # -log of the stain's linear colour: the absorbance at density 1
         ("absorbance_g", np.float64),
         ("absorbance_b", np.float64),
@@ -154,7 +161,7 @@ def stain_table(scene: Scene, textures: SceneTextures) -> np.ndarray:
     absorbance = -np.log(np.clip(srgb_to_linear(stain_rgb(stain)), 1e-3, 1.0))
     table = np.zeros(1, dtype=STAIN_DTYPE)
     table[0] = (stain.unevenness, textures.low_cell_mm, stain.centre_elongation, stain.rim_clearing_mm,
-                stain.translucency, *absorbance)
+                stain.translucency, stain.rim_mottle, stain.rim_mottle_mm, *absorbance)
     return table
 
 
@@ -186,7 +193,7 @@ def well_at(u, v, a1x, a1y, pitch, rows, cols):
 
 
 @njit(cache=True, nogil=True, inline="always")
-def monolayer_density(u, v, du, dv, dist, radius, well, stain, low_grid, fibre_grid, fine_tile):
+def monolayer_density(u, v, du, dv, dist, radius, well, stain, low_grid, fibre_grid, fine_tile, mottle_tile):
     """Density of the intact (or lysed) monolayer of ``well`` at plate point ``(u, v)``, ``(du, dv)`` from the
     well's centre at distance ``dist``; before plaques and marks."""
     low_cell = stain.unevenness_cell_mm
@@ -204,6 +211,12 @@ def monolayer_density(u, v, du, dv, dist, radius, well, stain, low_grid, fibre_g
         density *= 1.0 - RIM_THINNING * math.exp(-max(radius - dist, 0.0) / rim_clearing)
     fine = tile_sample(fine_tile, (u + well.noise_x) / FINE_CELL_MM, (v + well.noise_y) / FINE_CELL_MM)
     density *= max(1.0 + DRYING_GAIN * well.drying_detail * fine, 0.0)
+    if stain.rim_mottle > 0.0 and radius - dist < 4.0 * stain.rim_mottle_mm:
+        # patches of paler, detached cells in a band along the rim
+        patch = tile_sample(mottle_tile, (u + well.noise_y) / MOTTLE_CELL_MM, (v + well.noise_x) / MOTTLE_CELL_MM)
+        patch = clip01(0.5 + patch / (2.0 * MOTTLE_EDGE))
+        band = math.exp(-max(radius - dist, 0.0) / stain.rim_mottle_mm)
+        density *= 1.0 - stain.rim_mottle * band * patch
     if well.lysed > 0.5:
         # what is left of a lysed layer: a cloud around the centre and a network of strands
         fibre = grid_sample(fibre_grid, u / FIBRE_CELL_MM, v / FIBRE_CELL_MM)
@@ -465,7 +478,7 @@ def _capsules(grid: Sampling, segments: np.ndarray, values: np.ndarray, out: np.
 
 @njit(cache=True, nogil=True, parallel=True, fastmath=True)
 def _bake_floor(texel_mm, a1x, a1y, pitch, rows, cols, radius, wells, stain, low_grid, fibre_grid, fine_tile,
-                residual_tile, clearing, rim, scratched, specks, out):
+                mottle_tile, residual_tile, clearing, rim, scratched, specks, out):
     height, width = out.shape[0], out.shape[1]
     margin = 2.0 * texel_mm
     for y in prange(height):
@@ -483,7 +496,8 @@ def _bake_floor(texel_mm, a1x, a1y, pitch, rows, cols, radius, wells, stain, low
                 out[y, x, 1] = 1.0
                 out[y, x, 2] = 1.0
                 continue
-            density = monolayer_density(u, v, du, dv, dist, radius, well, st, low_grid, fibre_grid, fine_tile)
+            density = monolayer_density(u, v, du, dv, dist, radius, well, st, low_grid, fibre_grid, fine_tile,
+                                        mottle_tile)
             density = changed_density(density, u, v, well, clearing[y, x], rim[y, x], scratched[y, x], specks[y, x],
                                       residual_tile)
             r, g, b = stain_transmittance(density, st)
@@ -544,6 +558,6 @@ def floor_transmittance(scene: Scene, texels_per_mm: float, textures: SceneTextu
     out = np.empty((grid.height, grid.width, 3), dtype=np.float32)
     _bake_floor(1.0 / grid.px_per_mm, plate.a1_x_mm, plate.a1_y_mm, plate.pitch_mm, plate.rows, plate.cols,
                 plate.well_radius_mm, well_table(wells, centres, textures.well_offsets), stain_table(scene, textures),
-                textures.low_grid, fibre_grid_or_empty(textures), textures.fine_tile, textures.residual_tile,
-                content.clearing, content.rim, content.scratched, content.specks, out)
+                textures.low_grid, fibre_grid_or_empty(textures), textures.fine_tile, textures.mottle_tile,
+                textures.residual_tile, content.clearing, content.rim, content.scratched, content.specks, out)
     return out

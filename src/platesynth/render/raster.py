@@ -22,7 +22,8 @@ from platesynth.render import appearance, postprocess, shading
 from platesynth.render.camera import REFERENCE_WIDTH, View, camera_view
 from platesynth.render.color import gamma_lut, linear_lut, srgb_to_linear
 from platesynth.render.look import DESK_CELL_MM, DESK_SHEEN, RELIEF_EMBOSS, RELIEF_RAISED, TOP_EDGE_OFFSET_MM
-from platesynth.render.result import RenderResult, WellInfo, check_size, renumber
+from platesynth.render.masks import renumber
+from platesynth.render.result import RenderResult, WellInfo, check_size
 from platesynth.render.textures import noise_grid, scene_rng, scene_textures
 from platesynth.scene.concrete import PlateGeometry, Scene, Well
 from platesynth.scene.sample import color_temperature_rgb
@@ -185,7 +186,7 @@ def render_raster(scene: Scene, size: tuple[int, int] = (1024, 768)) -> RenderRe
         appearance.well_table(wells, top_centres, textures.well_offsets), appearance.stain_table(scene, textures),
         plate_relief(scene.plate, k), marker_ink(scene, k), k, textures.low_grid,
         appearance.fibre_grid_or_empty(textures), desk_grid, desk_cell_px, textures.fine_tile,
-        textures.residual_tile, content.clearing, content.rim, content.scratched, content.specks, light_gains(scene),
+        textures.mottle_tile, textures.residual_tile, content.clearing, content.rim, content.scratched, content.specks, light_gains(scene),
         gamma_lut(), image, wells_mask,
     )
     sigma = scene.camera.defocus_px * width / REFERENCE_WIDTH

@@ -17,7 +17,7 @@ from scipy import ndimage
 
 from platesynth.scene.concrete import PlateGeometry, Scene
 
-STREAMS = ("well_offsets", "unevenness", "fibres", "desk", "fine", "residual", "post")
+STREAMS = ("well_offsets", "unevenness", "fibres", "desk", "fine", "residual", "post", "mottle")
 """The renderers' random streams, in the order they are spawned from the scene's seed."""
 
 FINE_CELL_MM = 0.05
@@ -28,6 +28,8 @@ RESIDUAL_CELL_MM = 0.1
 """Cell of the stain left inside plaques (the residual tile)."""
 FIBRE_CELL_MM = 0.25
 """Cell of the strands left in lysed wells (the fibre grid)."""
+MOTTLE_CELL_MM = 0.06
+"""Cell of the patchy cells in the mottled band along a well's rim (the mottle tile)."""
 WELL_OFFSET_RANGE_MM = 100.0
 """Each well reads the periodic tiles shifted by its own offset, uniform in [0, this)."""
 
@@ -67,6 +69,7 @@ class SceneTextures:
     fibre_grid : the lysed wells' strands (cells :data:`FIBRE_CELL_MM`); ``None`` when no well is lysed.
     fine_tile : 256 x 256 tile of the drying texture and of the plaques' fray.
     residual_tile : 128 x 128 tile of the stain left inside plaques.
+    mottle_tile : 256 x 256 tile of the patchy cells along the rims.
     """
 
     well_offsets: np.ndarray
@@ -75,6 +78,7 @@ class SceneTextures:
     fibre_grid: np.ndarray | None
     fine_tile: np.ndarray
     residual_tile: np.ndarray
+    mottle_tile: np.ndarray
 
 
 def scene_textures(scene: Scene) -> SceneTextures:
@@ -95,4 +99,5 @@ def scene_textures(scene: Scene) -> SceneTextures:
         fibre_grid=fibre_grid,
         fine_tile=noise_grid(scene_rng(seed, "fine"), (256, 256), 0.8, periodic=True),
         residual_tile=noise_grid(scene_rng(seed, "residual"), (128, 128), 1.2, periodic=True),
+        mottle_tile=noise_grid(scene_rng(seed, "mottle"), (256, 256), 1.5, periodic=True),
     )

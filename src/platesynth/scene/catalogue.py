@@ -105,6 +105,8 @@ class StainConfig(Section):
     drying_detail: Dist = number([0.01, 0.04], 0.0, 1.0, "", "high-frequency drying texture")
     rim_clearing_mm: Dist = number([0.1, 0.6], 0.0, 5.0, "mm", "width of the paler band along the rim")
     translucency: Dist = number([0.0, 0.008], 0.0, 1.0, "", "fraction of light passing un-absorbed")
+    rim_mottle: Dist = number(0.0, 0.0, 1.0, "", "how much paler the patches of a mottled band along the rim are")
+    rim_mottle_mm: Dist = number(2.0, 0.1, 10.0, "mm", "width of the mottled band along the rim")
     centre_gradient_factor: Dist = number([0.5, 1.0], 0.0, 2.0, "", "each well's factor on centre_gradient")
     centre_offset: Dist = number(0.15, 0.0, 1.0, "",
                                  "sd of a dark centre's offset from the well centre, per axis, fraction of its radius")

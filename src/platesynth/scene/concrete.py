@@ -72,6 +72,8 @@ class Stain(_Concrete):
     centre_elongation: float = Field(description="aspect ratio of the wells' dark centres (1 = round)")
     rim_clearing_mm: float = Field(description="width of the thinner, paler band along the rim, mm")
     translucency: float = Field(description="fraction of light passing un-absorbed (gaps in the layer), 0..1")
+    rim_mottle: float = Field(0.0, description="how much paler the patches of the mottled band along the rim are, 0..1")
+    rim_mottle_mm: float = Field(2.0, description="width of the mottled band along the rim, mm")
 
 
 class WellStain(_Concrete):

@@ -37,6 +37,8 @@ from platesynth.scene.concrete import (
     WellStain,
 )
 
+STAIN_DRAWN_LAST = ("rim_mottle", "rim_mottle_mm")
+"""Stain parameters drawn after all others (added later; drawing them earlier would change every scene)."""
 SBS_LENGTH_MM, SBS_WIDTH_MM = 127.76, 85.48
 """The SBS footprint of every plate format."""
 # rows, cols, pitch, bottom radius, wall thickness, well depth (mm); SBS footprint, wells centred on the plate
@@ -303,8 +305,9 @@ def sample_scene(config: SceneConfig, seed: int) -> Scene:
     )
     post = _sample_post(c, rng)
     texture_seed = int(rng.integers(0, 2**31 - 1))
-    # drawn last, so that adding it left every earlier draw as it was
+    # the look of plaques and of the rim's mottle are drawn last, so that adding them left every earlier draw as it was
     plaque_look = PlaqueLook(**{name: c.plaques.draw(name, rng) for name in PlaqueLook.model_fields})
+    stain = stain.model_copy(update={name: c.stain.draw(name, rng) for name in STAIN_DRAWN_LAST})
     return Scene(
         seed=texture_seed,
         plate=plate,
