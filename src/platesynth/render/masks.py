@@ -1,10 +1,36 @@
-"""Mask clean-up for instance masks from renderers that anti-alias their labels."""
+"""Instance-mask helpers: renumbering the ids a renderer drew (both renderers), and the clean-up of masks from
+renderers that anti-alias their labels."""
 
 from __future__ import annotations
 
 import numpy as np
+from numba import njit
 
 from platesynth.errors import ShapeMismatchError
+
+
+@njit(cache=True, nogil=True)
+def renumber(ids):
+    """Renumber the non-zero ids present in the C-contiguous integer mask ``ids`` to 1..m in increasing order, in
+    place (hidden objects leave no gap); returns ``ids``."""
+    top = 0
+    for value in ids.ravel():
+        if value > top:
+            top = value
+    lookup = np.zeros(top + 1, dtype=ids.dtype)
+    flat = ids.ravel()
+    for value in flat:
+        lookup[value] = 1
+    lookup[0] = 0
+    next_id = 0
+    for value in range(1, top + 1):
+        if lookup[value]:
+            next_id += 1
+            lookup[value] = next_id
+    for i in range(flat.shape[0]):
+        flat[i] = lookup[flat[i]]
+    return ids
+
 
 _OFFSETS = [(dy, dx) for dy in (-1, 0, 1) for dx in (-1, 0, 1) if (dy, dx) != (0, 0)]
 

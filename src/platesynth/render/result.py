@@ -5,7 +5,6 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
-from numba import njit
 
 from platesynth.errors import ParameterError
 
@@ -95,25 +94,3 @@ def check_size(size: tuple[int, int]) -> tuple[int, int]:
         )
     return width, height
 
-
-@njit(cache=True, nogil=True)
-def renumber(ids):
-    """Renumber the non-zero ids present in the integer mask ``ids`` to 1..m in increasing order, in place
-    (hidden objects leave no gap); returns ``ids``."""
-    top = 0
-    for value in ids.ravel():
-        if value > top:
-            top = value
-    lookup = np.zeros(top + 1, dtype=ids.dtype)
-    flat = ids.ravel()
-    for value in flat:
-        lookup[value] = 1
-    lookup[0] = 0
-    next_id = 0
-    for value in range(1, top + 1):
-        if lookup[value]:
-            next_id += 1
-            lookup[value] = next_id
-    for i in range(flat.shape[0]):
-        flat[i] = lookup[flat[i]]
-    return ids
