@@ -3,7 +3,12 @@
 Renders ``--count`` images per preset (seeds 0..count-1) into a temporary folder and prints, for each preset and
 for the real set, the AlexNet Fréchet distance and kernel distance to the real photos, the naturalness factor and
 dNf = |nf_real - nf|, the pixel entropy (size-matched: mean over subsets as large as the smaller set, since entropy
-grows with the number of images) and the brightness variability, all from :func:`platesynth.metrics.dataset_metrics`.
+grows with the number of images) and the brightness variability, all from :func:`platesynth.metrics.dataset_metrics`;
+then the well-crop metrics of :mod:`platesynth.metrics.wells` (wells of the renders from their true masks, wells of
+the photos from a fitted 3x4 grid, crops of 128x128): ``fd_wells`` and ``kid_wells`` (AlexNet features of the
+crops), ``dnf_wells`` (|difference of the crops' mean Nf|), ``spec_wells`` (RMS difference of the mean log10
+power spectra of the monolayer, decades: the renders' plaques left out, the photos' kept as they have no masks) and
+``spec_w_plaques`` (the same with plaques kept in both sets, like for like).
 
 The real set is ``../shared/data/plaque12/plates`` (39 crops of ~1200x950 px). The renders are made at 1216x944
 (the crops' typical size and aspect); ``--compare-size`` resizes both sets (Lanczos) before measuring, e.g. to
@@ -25,7 +30,8 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 SHARED = Path(os.environ.get("PLATESYNTH_SHARED", ROOT.parent / "shared"))
-COLUMNS = ("fd_alexnet", "kid_alexnet", "nf", "dnf", "entropy", "brightness_var")
+COLUMNS = ("fd_alexnet", "kid_alexnet", "nf", "dnf", "entropy", "brightness_var", "fd_wells", "kid_wells",
+           "dnf_wells", "spec_wells", "spec_w_plaques")
 
 
 def _size(text: str) -> tuple[int, int]:
@@ -53,14 +59,31 @@ def _resized_reference(source: Path, size: tuple[int, int], target: Path) -> Pat
 
 
 def _render_preset(preset: str, count: int, size: tuple[int, int], compare: tuple[int, int] | None, folder: Path):
+    """Render into a dataset layout (images/, masks/wells/, masks/plaques/, params/), masks resized like the images."""
+    import numpy as np
+    from PIL import Image
+
+    from platesynth.data.layout import item_paths
+    from platesynth.io import write_json, write_tiff
     from platesynth.render import render
     from platesynth.scene import load_config, sample_scene
 
+    def nearest(mask):
+        if compare is None:
+            return mask
+        return np.asarray(Image.fromarray(mask).resize(compare, Image.Resampling.NEAREST))
+
     config = load_config(preset)
-    folder.mkdir(parents=True, exist_ok=True)
     start = time.perf_counter()
     for seed in range(count):
-        _resized(render(sample_scene(config, seed), size).image, compare).save(folder / f"{preset}_{seed:04d}.png")
+        scene = sample_scene(config, seed)
+        result = render(scene, size)
+        item = item_paths(folder, f"{preset}_{seed:04d}")
+        item.image_path.parent.mkdir(parents=True, exist_ok=True)
+        _resized(result.image, compare).save(item.image_path)
+        write_tiff(item.wells_path, nearest(result.wells))
+        write_tiff(item.plaques_path, nearest(result.plaques))
+        write_json(item.params_path, {"scene": scene.model_dump(mode="json")})
     return time.perf_counter() - start
 
 
@@ -79,7 +102,14 @@ def main(argv: list[str] | None = None) -> None:
     os.environ.setdefault("PLATESYNTH_WEIGHTS_DIR", str(SHARED / "weights"))
 
     from platesynth.io import list_images
-    from platesynth.metrics import MetricSkippedWarning, dataset_metrics, size_matched_entropy
+    from platesynth.metrics import (
+        MetricSkippedWarning,
+        collect_well_crops,
+        compare_well_crops,
+        dataset_metrics,
+        get_feature_extractor,
+        size_matched_entropy,
+    )
 
     warnings.simplefilter("ignore", MetricSkippedWarning)  # no Inception weights offline: AlexNet only
     with tempfile.TemporaryDirectory() as tmp:
@@ -88,12 +118,15 @@ def main(argv: list[str] | None = None) -> None:
         if args.compare_size:
             reference = _resized_reference(reference, args.compare_size, Path(tmp) / "reference")
         n_real = len(list_images(reference))
+        extractor = get_feature_extractor("alexnet")
+        real_wells = collect_well_crops(reference, extractor=extractor)  # once: the same for every preset
         rows: dict[str, dict[str, float]] = {}
         real_row: dict[str, float] = {}
         for preset in args.presets.split(","):
             folder = work / preset
             seconds = _render_preset(preset, args.count, args.size, args.compare_size, folder)
-            metrics = dataset_metrics(folder, reference)
+            metrics = dataset_metrics(folder / "images", reference)
+            wells = compare_well_crops(collect_well_crops(folder, extractor=extractor), real_wells)
             subset = min(args.count, n_real)
             shape = tuple(metrics["size"])
             rows[preset] = {
@@ -101,8 +134,13 @@ def main(argv: list[str] | None = None) -> None:
                 "kid_alexnet": metrics["kid_alexnet"],
                 "nf": metrics["nf_mean"],
                 "dnf": metrics["dnf"],
-                "entropy": size_matched_entropy(list_images(folder), subset, size=shape),
+                "entropy": size_matched_entropy(list_images(folder / "images"), subset, size=shape),
                 "brightness_var": metrics["brightness_variability"],
+                "fd_wells": wells["fd_wells"],
+                "kid_wells": wells["kid_wells"],
+                "dnf_wells": wells["dnf_wells"],
+                "spec_wells": wells["spectrum_distance_wells"],
+                "spec_w_plaques": wells["spectrum_distance_wells_with_plaques"],
             }
             real_row = {
                 "fd_alexnet": 0.0,
@@ -111,11 +149,18 @@ def main(argv: list[str] | None = None) -> None:
                 "dnf": 0.0,
                 "entropy": size_matched_entropy(list_images(reference), subset, size=shape),
                 "brightness_var": metrics["brightness_variability_reference"],
+                "fd_wells": 0.0,
+                "kid_wells": 0.0,
+                "dnf_wells": 0.0,
+                "spec_wells": 0.0,
+                "spec_w_plaques": 0.0,
             }
-            print(f"[{preset}: {args.count} renders at {args.size[0]}x{args.size[1]} in {seconds:.0f} s]", file=sys.stderr)
+            print(f"[{preset}: {args.count} renders at {args.size[0]}x{args.size[1]} in {seconds:.0f} s; "
+                  f"{wells['n_wells']} wells against {wells['n_wells_reference']} real ones]", file=sys.stderr)
     compared = f", both resized to {args.compare_size[0]}x{args.compare_size[1]}" if args.compare_size else ""
     print(f"realism against {args.reference} ({n_real} images); {args.count} renders per preset at "
-          f"{args.size[0]}x{args.size[1]}{compared}; entropy over subsets of {min(args.count, n_real)} images")
+          f"{args.size[0]}x{args.size[1]}{compared}; entropy over subsets of {min(args.count, n_real)} images; "
+          "well crops 128x128")
     print(f"{'set':10s}" + "".join(f"{c:>16s}" for c in COLUMNS))
     for name, row in [*rows.items(), ("real", real_row)]:
         print(f"{name:10s}" + "".join(f"{row[c]:16.4f}" for c in COLUMNS))

@@ -81,30 +81,66 @@ def pair_command(
         print_table(result, title=f"{synthetic} vs {real}")
 
 
+def _parse_grid(text: str) -> tuple[int, int]:
+    """``"3x4"`` (rows x columns) -> ``(3, 4)``."""
+    match = re.fullmatch(r"\s*(\d+)\s*[xX]\s*(\d+)\s*", text)
+    if not match or 0 in (int(match[1]), int(match[2])):
+        raise ParameterError(f"--well-grid must be ROWSxCOLS, e.g. 3x4, got {text!r}")
+    return int(match[1]), int(match[2])
+
+
 @app.command("dataset")
 @user_errors
 def dataset_command(
-    directory: Path = typer.Argument(..., help="Folder of images (typically synthetic).", show_default=False),
+    directory: Path = typer.Argument(
+        ..., help="Folder of images (typically synthetic); with --wells a platesynth dataset or its images/ folder.",
+        show_default=False,
+    ),
     reference: Path | None = typer.Option(None, "--reference", help="Folder of reference (real) images."),
     size: str | None = typer.Option(
         None, "--size", help="WIDTHxHEIGHT for entropy and brightness variability [default: the first image's]."
     ),
     json_output: bool = typer.Option(False, "--json", help="Print one JSON object on stdout."),
     no_frechet: bool = typer.Option(False, "--no-frechet", help="Skip the Fréchet and kernel distances."),
+    wells: bool = typer.Option(
+        False, "--wells", help="Add the well-crop metrics against --reference (fd_wells, kid_wells, dnf_wells, "
+        "spectrum and plaque figures); wells from DIR's masks, the reference's from a fitted plate grid."
+    ),
+    well_size: int = typer.Option(128, "--well-size", help="Side of the resized well crops, pixels.", min=31),
+    well_grid: str = typer.Option("3x4", "--well-grid", help="ROWSxCOLS of the plates without masks."),
+    model: Path | None = typer.Option(
+        None, "--model", help="With --wells: a segmentation model whose predicted masks replace the grid."
+    ),
 ) -> None:
     """Diversity (pixel entropy, brightness variability) and naturalness of a folder of images.
 
     With --reference also the naturalness difference and the Fréchet and kernel distances of AlexNet features
     (and of Inception features when its weights are available). Entropy grows with the number of images
-    (at most log2 N bits): compare folders of equal size.
+    (at most log2 N bits): compare folders of equal size. With --wells also the well-crop metrics
+    (docs/metrics.md, "Well-crop metrics"); the spectra themselves are printed with --json only.
     """
+    from platesynth.data.layout import IMAGES_DIR
     from platesynth.metrics import dataset_metrics
+    from platesynth.metrics.wells import find_dataset_root, well_metrics
 
     target_size = _parse_size(size)
+    grid = _parse_grid(well_grid)
+    if (wells or model is not None) and reference is None:
+        raise ParameterError("--wells and --model need --reference (the real plates to compare the wells with)")
+    if model is not None and not wells:
+        raise ParameterError("--model is used by --wells only")
+    root = find_dataset_root(directory)
+    images = root / IMAGES_DIR if root is not None and wells else directory
     with _progress_and_notes() as progress:
-        result = dataset_metrics(directory, reference, size=target_size, frechet=not no_frechet, progress=progress)
+        result = dataset_metrics(images, reference, size=target_size, frechet=not no_frechet, progress=progress)
+        if wells:
+            result.update(
+                well_metrics(directory, reference, size=well_size, grid=grid, model=model, frechet=not no_frechet,
+                             progress=progress)
+            )
     if json_output:
         print_json(result)
         return
     height, width = result.pop("size")
-    print_table({"size (width x height)": f"{width}x{height}", **result}, title=str(directory))
+    rows = {key: value for key, value in result.items() if not isinstance(value, list)}  # spectra: --json only
+    print_table({"size (width x height)": f"{width}x{height}", **rows}, title=str(directory))

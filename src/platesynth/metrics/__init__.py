@@ -8,6 +8,10 @@ Dataset metrics: the streaming :class:`PixelEntropy` and :class:`BrightnessVaria
 (``update(image)`` / ``compute()`` / ``reset()``), :func:`size_matched_entropy`, :class:`FeatureStatistics` with
 :func:`frechet_distance_from_stats` and :func:`kernel_distance`, and :func:`dataset_metrics` for a whole folder.
 
+Well-crop metrics (:mod:`platesynth.metrics.wells`): :func:`fit_plate_grid`, :func:`wells_from_mask`,
+:func:`crop_well`, :func:`radial_power_spectrum`, :func:`plaque_measurements`, the streaming :class:`WellCrops`,
+:func:`compare_well_crops` and :func:`well_metrics` for a dataset against real photos.
+
 The torch-based names (LPIPS, Fréchet and kernel distances) are imported on first use, so that
 ``import platesynth.metrics`` does not load torch.
 """
@@ -33,6 +37,18 @@ from platesynth.metrics.pair import (
     peak_signal_noise_ratio,
     structural_similarity,
 )
+from platesynth.metrics.wells import (
+    WellCrops,
+    WellDisc,
+    collect_well_crops,
+    compare_well_crops,
+    crop_well,
+    fit_plate_grid,
+    plaque_measurements,
+    radial_power_spectrum,
+    well_metrics,
+    wells_from_mask,
+)
 
 _LAZY_EXPORTS = {
     "lpips": ("LPIPS", "lpips_distance"),
@@ -53,8 +69,14 @@ __all__ = [
     "MetricSkippedWarning",
     "NaturalnessResult",
     "PixelEntropy",
+    "WellCrops",
+    "WellDisc",
+    "collect_well_crops",
     "compare_pair",
+    "compare_well_crops",
+    "crop_well",
     "dataset_metrics",
+    "fit_plate_grid",
     "grayscale",
     "mean_squared_error",
     "naturalize",
@@ -62,8 +84,12 @@ __all__ = [
     "naturalness_map",
     "normalized_root_mse",
     "peak_signal_noise_ratio",
+    "plaque_measurements",
+    "radial_power_spectrum",
     "size_matched_entropy",
     "structural_similarity",
+    "well_metrics",
+    "wells_from_mask",
     *sorted(_MODULE_OF),
 ]
 
