@@ -745,7 +745,7 @@ class _Plate(NamedTuple):
 
 def _plates(path: Path) -> tuple[int, Iterator[_Plate]]:
     """The plates of a dataset (with masks) or of a folder of images (without): count and a lazy iterator."""
-    from platesynth.data.layout import list_items, load_item
+    from platesynth.data.layout import list_items, load_item, read_params
 
     root = find_dataset_root(path)
     if root is None:
@@ -757,10 +757,8 @@ def _plates(path: Path) -> tuple[int, Iterator[_Plate]]:
         if item.params_path is None:
             return None
         try:
-            import json
-
-            return float(json.loads(item.params_path.read_text())["scene"]["plate"]["well_radius_mm"])
-        except (OSError, ValueError, KeyError, TypeError):
+            return float(read_params(item)["scene"]["plate"]["well_radius_mm"])
+        except (DatasetError, KeyError, TypeError, ValueError):  # no scene in the params: no mm²
             return None
 
     def read() -> Iterator[_Plate]:
