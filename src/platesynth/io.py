@@ -4,7 +4,9 @@ from __future__ import annotations
 
 import json
 import os
+import struct
 import uuid
+import zlib
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
@@ -65,6 +67,56 @@ def read_image(path: str | os.PathLike) -> np.ndarray:
     return array
 
 
+def read_mask(path: str | os.PathLike, first_channel: bool = False) -> np.ndarray:
+    """Read an instance mask (a TIFF of integer ids, as the dataset writer and Blender's compositor write them).
+
+    Parameters
+    ----------
+    path : str or path-like
+        TIFF file.
+    first_channel : bool
+        Take the first channel of an ``(H, W, C)`` file (Blender writes the ids into every channel of an RGB TIFF).
+
+    Returns
+    -------
+    numpy.ndarray
+        ``(H, W)`` integer array, dtype as stored.
+
+    Raises
+    ------
+    ImageReadError
+        If the file is missing or unreadable, or does not hold a 2-D integer array.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise ImageReadError(f"{path}: no such mask")
+    try:
+        mask = tifffile.imread(path)
+    except (OSError, ValueError, tifffile.TiffFileError) as exc:
+        raise ImageReadError(f"{path}: cannot read mask ({exc.__class__.__name__}: {exc})") from None
+    if first_channel and mask.ndim == 3:
+        mask = mask[..., 0]
+    if mask.ndim != 2 or not np.issubdtype(mask.dtype, np.integer):
+        raise ImageReadError(f"{path}: expected a 2-D integer instance mask, got {mask.dtype} {mask.shape}")
+    return mask
+
+
+def image_size(path: str | os.PathLike) -> tuple[int, int]:
+    """``(width, height)`` of an image file, from its header (the pixels are not decoded).
+
+    Raises
+    ------
+    ImageReadError
+        If the file is missing or not an image Pillow can open.
+    """
+    path = Path(path)
+    try:
+        with Image.open(path) as img:
+            return img.size
+    except (OSError, UnidentifiedImageError, ValueError) as exc:
+        raise ImageReadError(f"{path}: cannot read image ({exc.__class__.__name__}: {exc})") from None
+
+
 def to_rgb_uint8(image: np.ndarray) -> np.ndarray:
     """Bring an image to ``(H, W, 3)`` uint8: gray is repeated, alpha dropped, 16-bit scaled by 255/65535."""
     if image.dtype == np.uint16:
@@ -108,10 +160,58 @@ def atomic_path(path: str | os.PathLike) -> Iterator[Path]:
             tmp.unlink()
 
 
-def write_png(path: str | os.PathLike, image: np.ndarray) -> None:
-    """Write an 8- or 16-bit image as PNG, atomically."""
+PNG_COMPRESS_LEVEL = 6
+"""zlib level of :func:`write_png` by default."""
+_PNG_COLOUR_TYPES = {1: 0, 3: 2, 4: 6}  # channels -> PNG colour type: gray, RGB, RGBA
+
+
+def _png_chunk(kind: bytes, data: bytes) -> bytes:
+    return struct.pack(">I", len(data)) + kind + data + struct.pack(">I", zlib.crc32(kind + data))
+
+
+def encode_png(image: np.ndarray, compress_level: int = PNG_COMPRESS_LEVEL) -> bytes:
+    """The PNG file of an 8-bit gray, RGB or RGBA image, every row filtered with PNG's "Up" filter.
+
+    Pillow chooses a filter per row by trying all five, which took longer than compressing: with the one filter
+    (the difference to the row above, computed at once by numpy) a 1024x768 render is encoded about twice as fast
+    at the same zlib level, its file 2-5 % larger. Lossless like every PNG.
+
+    Parameters
+    ----------
+    image : (H, W), (H, W, 1), (H, W, 3) or (H, W, 4) uint8.
+    compress_level : zlib's level, 0 (none) to 9.
+    """
+    if image.dtype != np.uint8 or image.ndim not in (2, 3) or (image.ndim == 3 and image.shape[2] not in (1, 3, 4)):
+        raise ValueError(f"expected an 8-bit gray, RGB or RGBA image, got {image.dtype} {image.shape}")
+    height, width = image.shape[:2]
+    channels = 1 if image.ndim == 2 else image.shape[2]
+    rows = np.ascontiguousarray(image).reshape(height, width * channels)
+    filtered = np.empty((height, width * channels + 1), dtype=np.uint8)
+    filtered[:, 0] = 2  # "Up"; above the first row the image is zero, so the first row stays as it is
+    filtered[0, 1:] = rows[0]
+    np.subtract(rows[1:], rows[:-1], out=filtered[1:, 1:])  # modulo 256, as PNG defines it
+    header = struct.pack(">IIBBBBB", width, height, 8, _PNG_COLOUR_TYPES[channels], 0, 0, 0)
+    return b"".join(
+        (
+            b"\x89PNG\r\n\x1a\n",
+            _png_chunk(b"IHDR", header),
+            _png_chunk(b"IDAT", zlib.compress(filtered.data, compress_level)),
+            _png_chunk(b"IEND", b""),
+        )
+    )
+
+
+def write_png(path: str | os.PathLike, image: np.ndarray, compress_level: int = PNG_COMPRESS_LEVEL) -> None:
+    """Write an 8- or 16-bit image as PNG, atomically.
+
+    8-bit images are encoded by :func:`encode_png`, others by Pillow. ``compress_level`` is zlib's, 0 (none) to 9;
+    every level is lossless: 1 writes a 1024x768 render about four times faster than 6, the file about 10 % larger.
+    """
     with atomic_path(path) as tmp:
-        Image.fromarray(image).save(tmp, format="PNG")
+        if image.dtype == np.uint8 and (image.ndim == 2 or (image.ndim == 3 and image.shape[2] in (1, 3, 4))):
+            tmp.write_bytes(encode_png(image, compress_level))
+        else:
+            Image.fromarray(image).save(tmp, format="PNG", compress_level=compress_level)
 
 
 def write_tiff(path: str | os.PathLike, array: np.ndarray) -> None:

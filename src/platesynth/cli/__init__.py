@@ -2,6 +2,10 @@
 
 from __future__ import annotations
 
+import contextlib
+import sys
+from collections.abc import Iterator
+
 import typer
 
 from platesynth import __version__
@@ -33,4 +37,26 @@ def _main(
 
 def main() -> None:
     """Entry point of the ``platesynth`` console script."""
-    app()
+    with _workers_skip_the_script():
+        app()
+
+
+@contextlib.contextmanager
+def _workers_skip_the_script() -> Iterator[None]:
+    """Keep worker processes started with ``spawn`` (local or Dask workers) from running the console script again.
+
+    ``multiprocessing`` runs the parent's ``__main__`` file again in every spawned worker, in case a task was
+    defined there; the commands' tasks are all platesynth's own, and running the console script imported the whole
+    command line in each worker (0.5-1 s of CPU each, before its first task). A ``__main__`` without ``__file__``
+    is not run, so ``__file__`` is hidden while a command runs.
+    """
+    script = sys.modules.get("__main__")
+    path = getattr(script, "__file__", None)
+    if path is None or getattr(script, "__spec__", None) is not None:  # run by module name: multiprocessing skips it
+        yield
+        return
+    del script.__file__
+    try:
+        yield
+    finally:
+        script.__file__ = path

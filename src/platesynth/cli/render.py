@@ -15,7 +15,6 @@ from platesynth.cli._common import console, print_json, print_table, progress_ba
 from platesynth.data.batch import BatchSummary, build_manifest, render_dataset, render_item
 from platesynth.data.executor import EXECUTORS, make_executor
 from platesynth.data.layout import Manifest, list_items, load_item
-from platesynth.data.preview import contact_sheet, draw_outlines
 from platesynth.data.writer import check_directory
 from platesynth.errors import ParameterError
 from platesynth.io import write_png
@@ -169,6 +168,8 @@ def preview(
     outlines: Annotated[bool, typer.Option("--outlines/--no-outlines", help="Draw well and plaque outlines.")] = True,
 ) -> None:
     """Render a few scenes small and tile them into one contact sheet, to look at a configuration."""
+    from platesynth.data.preview import contact_sheet, draw_outlines  # scikit-image: not for every command
+
     if out.suffix.lower() != ".png":
         raise ParameterError(f"{out}: the contact sheet is a PNG file; give a name ending in .png")
     if out.is_dir():
@@ -208,6 +209,7 @@ def demo(
     ] = None,
 ) -> None:
     """Render a small 12-well dataset with counts and COCO, a contact sheet, and print its dataset metrics."""
+    from platesynth.data.preview import contact_sheet, draw_outlines
     from platesynth.metrics.dataset import dataset_metrics
 
     manifest = build_manifest(

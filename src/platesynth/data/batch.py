@@ -16,7 +16,6 @@ from typing import Any
 import numpy as np
 
 from platesynth import __version__
-from platesynth.data.coco import write_coco
 from platesynth.data.executor import Executor, SerialExecutor
 from platesynth.data.layout import DatasetItem, Manifest, item_name, item_paths, read_params
 from platesynth.data.writer import finished_items, prepare_directory, write_counts_csv, write_item, write_manifest
@@ -243,6 +242,8 @@ def render_dataset(
     finished = finished_items(directory, manifest.count)
     write_counts_csv(directory, finished)
     if manifest.coco:
+        from platesynth.data.coco import write_coco  # scipy.ndimage: not imported by every worker process
+
         write_coco(directory, finished)
     summary.failed = dict(sorted(summary.failed.items()))
     write_manifest(directory, manifest.model_copy(update={"failed": summary.failed}))

@@ -15,7 +15,7 @@ import numpy as np
 from scipy import ndimage
 
 from platesynth import __version__
-from platesynth.data.layout import COCO_NAME, DatasetItem, load_item
+from platesynth.data.layout import COCO_NAME, DatasetItem, load_masks
 from platesynth.data.writer import write_compact_json
 
 WELL_CATEGORY = 1
@@ -104,8 +104,8 @@ def coco_dataset(items: list[DatasetItem]) -> dict[str, Any]:
     """
     images, annotations = [], []
     for image_id, item in enumerate(items, start=1):
-        image, wells, plaques = load_item(item)
-        height, width = image.shape[:2]
+        wells, plaques = load_masks(item)  # the image's size from its header: its pixels are not needed
+        height, width = wells.shape
         images.append({"id": image_id, "file_name": item.image_path.name, "width": width, "height": height})
         for mask, category in ((wells, WELL_CATEGORY), (plaques, PLAQUE_CATEGORY)):
             for annotation in instance_annotations(mask, category):

@@ -26,11 +26,10 @@ from pathlib import Path
 from typing import Any, NamedTuple
 
 import numpy as np
-import tifffile
 from pydantic import BaseModel, ConfigDict, Field, ValidationError
 
-from platesynth.errors import DatasetError, EmptyDatasetError, ImageReadError
-from platesynth.io import read_image, to_rgb_uint8
+from platesynth.errors import DatasetError, EmptyDatasetError
+from platesynth.io import image_size, read_image, read_mask, to_rgb_uint8
 
 MANIFEST_NAME = "manifest.json"
 COUNTS_NAME = "counts.csv"
@@ -188,18 +187,6 @@ def list_items(directory: str | os.PathLike) -> list[DatasetItem]:
     return items
 
 
-def _read_mask(path: Path) -> np.ndarray:
-    if not path.is_file():
-        raise DatasetError(f"{path}: no such mask")
-    try:
-        mask = tifffile.imread(path)
-    except (OSError, ValueError, tifffile.TiffFileError) as exc:
-        raise ImageReadError(f"{path}: cannot read mask ({exc.__class__.__name__}: {exc})") from None
-    if mask.ndim != 2 or not np.issubdtype(mask.dtype, np.integer):
-        raise DatasetError(f"{path}: expected a 2-D integer instance mask, got {mask.dtype} {mask.shape}")
-    return mask
-
-
 def load_item(item: DatasetItem) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Read an item's image and masks.
 
@@ -212,20 +199,28 @@ def load_item(item: DatasetItem) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     Raises
     ------
     ImageReadError
-        If a file cannot be read.
+        If a file is missing or cannot be read, or a mask is not a 2-D integer array.
     DatasetError
-        If a mask is missing, not a 2-D integer array, or its size differs from the image's.
+        If a mask's size differs from the image's.
     """
     image = to_rgb_uint8(read_image(item.image_path))
-    wells = _read_mask(item.wells_path)
-    plaques = _read_mask(item.plaques_path)
-    for path, mask in ((item.wells_path, wells), (item.plaques_path, plaques)):
-        if mask.shape != image.shape[:2]:
+    return (image, *load_masks(item, (image.shape[1], image.shape[0])))
+
+
+def load_masks(item: DatasetItem, size: tuple[int, int] | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Read an item's two masks (not its image), checking that they have the image's ``size`` = (width, height).
+
+    ``size`` defaults to the image file's, read from its header. Raises as :func:`load_item`.
+    """
+    width, height = size if size is not None else image_size(item.image_path)
+    masks = read_mask(item.wells_path), read_mask(item.plaques_path)
+    for path, mask in zip((item.wells_path, item.plaques_path), masks, strict=True):
+        if mask.shape != (height, width):
             raise DatasetError(
                 f"{path}: mask size {mask.shape[1]}x{mask.shape[0]} differs from image "
-                f"{item.image_path} size {image.shape[1]}x{image.shape[0]}"
+                f"{item.image_path} size {width}x{height}"
             )
-    return image, wells, plaques
+    return masks
 
 
 def read_params(item: DatasetItem) -> dict[str, Any]:
