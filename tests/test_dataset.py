@@ -325,9 +325,13 @@ def test_render_dataset_files_ids_and_counts(rendered):
         assert np.array_equal(plaque_ids, np.arange(1, plaque_ids.size + 1))  # 1..m without gaps
         by_grid = {(w["row"], w["col"]): w["id"] for w in params["wells"]}
         from_masks = plaque_counts(wells, plaques)
+        # a person's count: the plaques in the masks, blank (None) for a lysed or emptied well
+        uncountable = {w["id"] for w in params["scene"]["wells"] if w["lysed"] or w["emptied"]}
         mine = {(r.row, r.col): r.count for r in rows if r.image == f"{item.name}.png"}
-        assert mine == {pos: from_masks[well_id] for pos, well_id in by_grid.items()}
-    assert sum(r.count for r in rows) > 0
+        assert mine == {pos: None if i in uncountable else from_masks[i] for pos, i in by_grid.items()}
+        assert all(w["plaques"] == from_masks[w["id"]] for w in params["wells"])
+    assert sum(r.count or 0 for r in rows) > 0
+    assert any(r.count is None for r in rows)  # this small dataset holds a lysed or emptied well
     manifest = read_manifest(directory)
     assert (manifest.count, manifest.seed, manifest.size, manifest.failed) == (3, 3, (160, 120), {})
 

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import csv
+import dataclasses
 import hashlib
 import json
 import shutil
@@ -95,7 +96,8 @@ def test_training_resumes_to_the_same_weights(rendered, tmp_path):
     saved = json.loads((tmp_path / "straight" / "config.json").read_text())
     train_items, val_items = split_items(list_items(rendered), 0.25, config.seed)
     names = {item.image_path.name for item in train_items}
-    counts = [w.count for w in read_counts_csv(rendered / "counts.csv") if w.image in names]
+    # over every well's masks: lysed and emptied wells (blank in counts.csv) hold no plaque
+    counts = [w.count or 0 for w in read_counts_csv(rendered / "counts.csv") if w.image in names]
     assert saved["training"]["mean_plaques_per_well"] == pytest.approx(np.mean(counts))
     assert saved["training"]["sources"][0]["n_train"] == len(train_items) == 3
     assert saved["training"]["sources"][0]["preset"] == "high"
@@ -114,11 +116,13 @@ def _oracle(rendered, drop_plaque_in=None):
     truth = {}
     for item in list_items(rendered):
         image, wells, plaques = load_item(item)
-        truth[hashlib.sha1(image.tobytes()).hexdigest()] = (wells, plaques)
+        blank = {(w["row"], w["col"]) for w in json.loads(item.params_path.read_text())["wells"] if w["count"] is None}
+        truth[hashlib.sha1(image.tobytes()).hexdigest()] = (wells, plaques, blank)
 
     def predict(image):
-        wells, plaques = truth[hashlib.sha1(image.tobytes()).hexdigest()]
+        wells, plaques, blank = truth[hashlib.sha1(image.tobytes()).hexdigest()]
         sorted_wells, info = sort_wells(wells, 12, from_below=True)
+        info = [dataclasses.replace(w, countable=(w.row, w.col) not in blank) for w in info]
         result = RenderResult(image, sorted_wells, plaques.copy(), info)
         counts = result.plaque_counts()
         if drop_plaque_in is not None and any(counts.values()):
@@ -132,20 +136,27 @@ def _oracle(rendered, drop_plaque_in=None):
 
 def test_evaluate_counts_with_known_counts(rendered):
     table = read_counts_csv(rendered / "counts.csv")
+    scored = [w for w in table if w.count is not None]
     report = evaluate_counts(_oracle(rendered), rendered / "images", rendered / "counts.csv", 12, baseline_count=2.0)
-    assert report["n_wells"] == len(table) == 48 and report["n_images"] == 4
+    assert len(table) == 48 and 0 < len(scored) < 48  # the blanks: lysed or emptied wells
+    assert report["n_wells"] == len(scored) and report["n_images"] == 4
     assert report["mae"] == 0.0 and report["rmse"] == 0.0 and report["n_wells_not_detected"] == 0
     assert report["pearson_r"] == pytest.approx(1.0)
-    truth = [w.count for w in table]
+    truth = [w.count for w in scored]
     assert report["baseline"]["mae"] == pytest.approx(np.mean(np.abs(np.array(truth) - 2.0)))
+    # every listed well has a record; blank wells' masks hold no plaque
     assert sorted((w["image"], w["row"], w["col"], w["predicted"]) for w in report["wells"]) == sorted(
-        (w.image, w.row, w.col, w.count) for w in table
+        (w.image, w.row, w.col, w.count or 0) for w in table
     )
+    # the oracle judges countability as the renderer did
+    assert report["countability"]["n_wells"] == 48 and report["countability"]["n_uncountable"] == 48 - len(scored)
+    assert report["countability"]["precision"] == report["countability"]["recall"] == report["countability"]["accuracy"] == 1.0
     # one plaque fewer on every image with plaques: each such image has one well off by one
-    with_plaques = len({w.image for w in table if w.count})
+    with_plaques = len({w.image for w in scored if w.count})
     assert with_plaques >= 1
     off = evaluate_counts(_oracle(rendered, drop_plaque_in=True), rendered / "images", rendered / "counts.csv", 12)
-    assert off["mae"] == pytest.approx(with_plaques / 48) and off["bias"] == pytest.approx(-with_plaques / 48)
+    n = len(scored)
+    assert off["mae"] == pytest.approx(with_plaques / n) and off["bias"] == pytest.approx(-with_plaques / n)
 
 
 def test_evaluate_masks_with_true_masks(rendered):
@@ -176,8 +187,8 @@ def test_cli_train_predict_evaluate(rendered, tiny_model, tmp_path):
         assert params["thresholds"] == {"wells": [0.7, config.branches["wells"].nms_thresh], "plaques": [0.7, 0.3]}
         assert [w["id"] for w in params["wells"]] == sorted(int(i) for i in np.unique(wells) if i)
         rows = [r for r in csv.DictReader((out / "counts.csv").open()) if r["image"] == image.name]
-        assert [(int(r["row"]), int(r["col"]), r["well"], int(r["count"])) for r in rows] == [
-            (w["row"], w["col"], w["label"], w["count"]) for w in params["wells"]
+        assert [(int(r["row"]), int(r["col"]), r["well"], r["count"]) for r in rows] == [
+            (w["row"], w["col"], w["label"], "" if w["count"] is None else str(w["count"])) for w in params["wells"]
         ]
 
     result = invoke("evaluate", "masks", "--model", tiny_model, "--data", rendered, "--tau", 0.5, "--tau", 0.7, "--json", *fast)
@@ -192,9 +203,12 @@ def test_cli_train_predict_evaluate(rendered, tiny_model, tmp_path):
     )
     assert result.exit_code == 0, result.output
     report = json.loads(result.stdout)
-    assert report["n_wells"] == 48
+    n_counted = sum(w.count is not None for w in read_counts_csv(rendered / "counts.csv"))
+    assert report["n_wells"] == n_counted < 48  # blank (uncountable) wells are not scored...
+    assert report["countability"]["n_uncountable"] == 48 - n_counted - sum(
+        not w["detected"] and w["count"] is None for w in report["wells"])  # ...but judged, where detected
     assert report["baseline"]["count"] == pytest.approx(config.training["mean_plaques_per_well"])
-    assert len(list(csv.DictReader((tmp_path / "wells.csv").open()))) == 48
+    assert len(list(csv.DictReader((tmp_path / "wells.csv").open()))) == 48  # every listed well
 
 
 def _copy(rendered, tmp_path):

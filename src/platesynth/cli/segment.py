@@ -308,8 +308,8 @@ def evaluate_counts_command(
         "counting", lambda progress: evaluate_counts(predictor, images, counts, plate_format, baseline, progress)
     )
     if table is not None:
-        rows = [(w["image"], w["row"], w["col"], w["well"], w["count"], w["predicted"], w["detected"]) for w in report["wells"]]
-        write_count_table(table, rows, columns=("image", "row", "col", "well", "count", "predicted", "detected"))
+        columns = ("image", "row", "col", "well", "count", "predicted", "detected", "predicted_countable")
+        write_count_table(table, [tuple("" if w[c] is None else w[c] for c in columns) for w in report["wells"]], columns)
     if as_json:
         print_json(report)
         return
@@ -319,6 +319,7 @@ def evaluate_counts_command(
 def print_count_summary(report: dict[str, Any], title: str) -> None:
     """Print the summary of an :func:`~platesynth.segment.counts.evaluate_counts` report as a table."""
     rows = {key: report[key] for key in ("n_images", "n_wells", "n_wells_not_detected", "mae", "rmse", "pearson_r", "bias")}
+    rows.update({f"uncountable wells: {k}": report["countability"][k] for k in ("n_uncountable", "precision", "recall", "f1")})
     if "baseline" in report:
         rows.update({f"baseline ({report['baseline']['count']:.2f}/well) {k}": report["baseline"][k] for k in ("mae", "rmse")})
     print_table(rows, title=title)

@@ -57,10 +57,11 @@ def _check_result(result: RenderResult, name: str) -> None:
 
 
 def well_records(result: RenderResult) -> list[dict[str, Any]]:
-    """Per well of a rendered plate: id, grid row/col, label and the plaque count from the masks."""
-    counts = result.plaque_counts()
+    """Per well of a rendered plate: id, grid row/col, label, the plaques in the masks and the count a person
+    would report (``None``, a blank, where the well is not countable: lysed or emptied)."""
+    plaques, counts = result.plaque_counts(), result.well_counts()
     return [
-        {"id": w.id, "row": w.row, "col": w.col, "label": w.label, "count": counts[w.id]}
+        {"id": w.id, "row": w.row, "col": w.col, "label": w.label, "plaques": plaques[w.id], "count": counts[w.id]}
         for w in sorted(result.well_info, key=lambda w: w.id)
     ]
 
@@ -213,7 +214,8 @@ def finished_items(directory: str | os.PathLike, count: int) -> list[DatasetItem
 
 
 def write_counts_csv(directory: str | os.PathLike, items: list[DatasetItem]) -> Path:
-    """Write ``counts.csv`` (``image,row,col,well,count``; one row per well per image) from the items' params.
+    """Write ``counts.csv`` (``image,row,col,well,count``; one row per well per image, the count blank where a
+    person would not count: a lysed or emptied well) from the items' params.
 
     The per-well counts in the params files were derived from the masks when the item was written
     (:func:`well_records`). Rows are ordered by image, then grid row and column.
@@ -226,7 +228,8 @@ def write_counts_csv(directory: str | os.PathLike, items: list[DatasetItem]) -> 
         if "wells" not in params:
             raise DatasetError(f"{item.params_path}: no per-well counts ('wells')")
         for well in sorted(params["wells"], key=lambda w: (w["row"], w["col"])):
-            writer.writerow((item.image_path.name, well["row"], well["col"], well["label"], well["count"]))
+            count = "" if well["count"] is None else well["count"]
+            writer.writerow((item.image_path.name, well["row"], well["col"], well["label"], count))
     path = Path(directory) / COUNTS_NAME
     with atomic_path(path) as tmp:
         tmp.write_text(buffer.getvalue())

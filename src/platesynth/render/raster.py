@@ -198,5 +198,5 @@ def render_raster(scene: Scene, size: tuple[int, int] = (1024, 768)) -> RenderRe
         image_u8 = postprocess.jpeg_roundtrip(image_u8, scene.post.jpeg.strength)
     plaque_ids = content.plaque_ids
     renumber(plaque_ids)
-    well_info = [WellInfo(id=w.id, row=w.row, col=w.col, label=w.label) for w in scene.wells]
+    well_info = [WellInfo(id=w.id, row=w.row, col=w.col, label=w.label, countable=w.countable) for w in scene.wells]
     return RenderResult(image=image_u8, wells=wells_mask, plaques=plaque_ids, well_info=well_info)

@@ -16,13 +16,15 @@ class WellInfo:
     """One well of the plate as drawn in the image.
 
     ``id`` is its value in the well mask (1..n); ``row``/``col`` its 0-based position in the image grid
-    from the top-left; ``label`` the plate's embossed name (e.g. ``"A1"``; mirrored when shot from below).
+    from the top-left; ``label`` the plate's embossed name (e.g. ``"A1"``; mirrored when shot from below);
+    ``countable`` whether a person would count its plaques (not where the layer is lysed, emptied or confluent).
     """
 
     id: int
     row: int
     col: int
     label: str
+    countable: bool = True
 
 
 @dataclass
@@ -45,6 +47,11 @@ class RenderResult:
     def plaque_counts(self) -> dict[int, int]:
         """Visible plaques per well id (a plaque belongs to the well holding most of its pixels)."""
         return plaque_counts(self.wells, self.plaques, [w.id for w in self.well_info])
+
+    def well_counts(self) -> dict[int, int | None]:
+        """Plaques per well id as a person reports them: ``None`` (a blank) for a well that is not countable."""
+        counts = self.plaque_counts()
+        return {w.id: counts[w.id] if w.countable else None for w in self.well_info}
 
 
 def plaque_counts(wells: np.ndarray, plaques: np.ndarray, well_ids: list[int] | None = None) -> dict[int, int]:

@@ -99,6 +99,11 @@ class Well(_Concrete):
     expected_plaques: float = Field(description="mean plaque count of the dilution for this well")
     stain: WellStain
 
+    @property
+    def countable(self) -> bool:
+        """Whether a person would count this well's plaques (not a lysed or emptied well)."""
+        return not (self.lysed or self.emptied)
+
 
 class Plaque(_Concrete):
     """One plaque: a clear, fuzzy-edged lesion in the monolayer.

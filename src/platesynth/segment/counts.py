@@ -25,6 +25,7 @@ from platesynth.errors import DatasetError, ParameterError
 from platesynth.io import atomic_path, read_image
 from platesynth.render.result import RenderResult, WellInfo
 from platesynth.scene import plate_geometry
+from platesynth.segment.countability import CountabilityMetrics
 
 COUNT_TABLE_COLUMNS = ("image", "row", "col", "well", "count")
 
@@ -206,7 +207,8 @@ def evaluate_counts(
     predict : maps an image to a :class:`~platesynth.render.result.RenderResult` whose ``well_info`` gives each
         predicted well's grid row and column (e.g. ``functools.partial(predict_image, model)``).
     images_dir : folder holding the images named in the table's ``image`` column.
-    counts_csv : ``image,row,col,well,count`` table; blank counts are not scored.
+    counts_csv : ``image,row,col,well,count`` table; blank counts (uncountable wells) are not scored for the
+        counts, but they are for countability.
     plate_format : wells per plate; every (row, col) of the table must lie in its grid.
     baseline_count : if given, also report the errors of predicting this count for every well.
     progress : called with (images done, total) after each image.
@@ -214,9 +216,11 @@ def evaluate_counts(
     Returns
     -------
     dict
-        The :meth:`CountMetrics.compute` figures, ``n_images``, ``n_wells_not_detected`` (scored wells where no
-        well was found: predicted 0), ``baseline`` (when asked) and ``wells``: one record per scored well
-        (``image, row, col, well, count, predicted, detected``).
+        The :meth:`CountMetrics.compute` figures over the wells a person counted, ``n_images``,
+        ``n_wells_not_detected`` (counted wells where no well was found: predicted 0), ``countability`` (the
+        :class:`~platesynth.segment.countability.CountabilityMetrics` of the model's judgement against the blanks,
+        over the detected wells), ``baseline`` (when asked) and ``wells``: one record per listed well
+        (``image, row, col, well, count, predicted, detected, predicted_countable``).
 
     Raises
     ------
@@ -236,18 +240,16 @@ def evaluate_counts(
         if (record.row, record.col) in wells:
             raise DatasetError(f"{counts_csv}, line {line}: {record.image} row {record.row}, col {record.col} listed twice")
         wells[(record.row, record.col)] = record
-    scored = {name: [w for w in wells.values() if w.count is not None] for name, wells in by_image.items()}
-    scored = {name: wells for name, wells in scored.items() if wells}
-    missing = [name for name in scored if not (images_dir / name).is_file()]
+    missing = [name for name in by_image if not (images_dir / name).is_file()]
     if missing:
         raise DatasetError(f"{counts_csv}: {len(missing)} image(s) not found in {images_dir}, e.g. {missing[0]}")
-    metric, table = CountMetrics(), []
-    for done, (name, wells) in enumerate(scored.items(), start=1):
+    table = []
+    for done, (name, wells) in enumerate(by_image.items(), start=1):
         result = predict(read_image(images_dir / name))
         predicted = result.plaque_counts()
-        ids = {(w.row, w.col): w.id for w in result.well_info}
-        for well in sorted(wells, key=lambda w: (w.row, w.col)):
-            well_id = ids.get((well.row, well.col))
+        info = {(w.row, w.col): w for w in result.well_info}
+        for well in sorted(wells.values(), key=lambda w: (w.row, w.col)):
+            found = info.get((well.row, well.col))
             table.append(
                 {
                     "image": name,
@@ -255,19 +257,26 @@ def evaluate_counts(
                     "col": well.col,
                     "well": well.well,
                     "count": well.count,
-                    "predicted": predicted[well_id] if well_id is not None else 0,
-                    "detected": well_id is not None,
+                    "predicted": predicted[found.id] if found is not None else 0,
+                    "detected": found is not None,
+                    "predicted_countable": found.countable if found is not None else True,
                 }
             )
         if progress is not None:
-            progress(done, len(scored))
-    metric.update([w["predicted"] for w in table], [w["count"] for w in table])
+            progress(done, len(by_image))
+    scored = [w for w in table if w["count"] is not None]
+    metric = CountMetrics()
+    metric.update([w["predicted"] for w in scored], [w["count"] for w in scored])
     report: dict[str, Any] = metric.compute()
-    report["n_images"] = len(scored)
-    report["n_wells_not_detected"] = sum(not w["detected"] for w in table)
+    report["n_images"] = len({w["image"] for w in scored})
+    report["n_wells_not_detected"] = sum(not w["detected"] for w in scored)
+    countability = CountabilityMetrics()
+    detected = [w for w in table if w["detected"]]
+    countability.update([w["predicted_countable"] for w in detected], [w["count"] is not None for w in detected])
+    report["countability"] = countability.compute()
     if baseline_count is not None:
         baseline = CountMetrics()
-        baseline.update([baseline_count] * len(table), [w["count"] for w in table])
+        baseline.update([baseline_count] * len(scored), [w["count"] for w in scored])
         report["baseline"] = {"count": baseline_count, **baseline.compute()}
     report["wells"] = table
     return report

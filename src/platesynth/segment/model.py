@@ -54,6 +54,9 @@ class ModelConfig(BaseModel):
     percentile_low: float = Field(1.0, ge=0, lt=100, description="intensity mapped to 0 (percentile over all channels)")
     percentile_high: float = Field(99.8, gt=0, le=100, description="intensity mapped to 1")
     plate_format: int = Field(12, description="wells per plate the model was trained for (grid shape for counting)")
+    countable_min_stained: float = Field(
+        0.0, ge=0.0, le=1.0, description="a well is countable where at least this share of it is still stained "
+        "(platesynth.segment.countability; tuned on synthetic validation images; 0: every well)")
     training: dict[str, Any] = Field(default_factory=dict, description="description of the training data and recipe")
     version: str = Field(__version__, description="platesynth version that wrote the model")
 

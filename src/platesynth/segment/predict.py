@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import os
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -25,6 +25,7 @@ from platesynth.data.writer import write_item
 from platesynth.errors import DatasetError, ParameterError
 from platesynth.io import read_image, to_rgb_uint8
 from platesynth.render.result import RenderResult
+from platesynth.segment.countability import judge_countable, stained_fractions
 from platesynth.segment.counts import sort_wells, write_count_table
 from platesynth.segment.data import normalize_image, pad_to_multiple, working_scale
 from platesynth.segment.model import BRANCHES, StarDistTwoBranch
@@ -129,7 +130,8 @@ def predict_image(
     RenderResult
         The same container the renderers return: the RGB image, wells (uint8, ids in reading order of the grid),
         plaques (uint16) and a :class:`~platesynth.render.result.WellInfo` (id, row, col, label) per well;
-        ``plaque_counts()`` gives plaques per well.
+        ``plaque_counts()`` gives plaques per well, ``well_counts()`` the same with ``None`` for the wells judged
+        uncountable (:mod:`platesynth.segment.countability`, with the model's threshold).
     """
     rgb = to_rgb_uint8(image)
     maps, working_shape = predict_maps(model, rgb)
@@ -142,6 +144,8 @@ def predict_image(
     if masks["plaques"].max() > np.iinfo(np.uint16).max:
         raise ParameterError(f"{masks['plaques'].max()} plaques found; a uint16 plaque mask holds at most 65535")
     wells, info = sort_wells(masks["wells"], plate_format or model.config.plate_format, from_below)
+    countable = judge_countable(stained_fractions(rgb, wells), model.config.countable_min_stained)
+    info = [replace(w, countable=countable.get(w.id, True)) for w in info]
     return RenderResult(rgb, wells, masks["plaques"].astype(np.uint16), info)
 
 
@@ -166,8 +170,8 @@ def predict_files(
 
     Writes ``out_dir/images/<stem>.png`` (the input as RGB), ``masks/wells/<stem>.tif``, ``masks/plaques/<stem>.tif``,
     ``params/<stem>.json`` (source file, model thresholds and per-well records) and ``counts.csv`` (``image`` is the
-    input's file name, then grid row, column, well label, plaques). Every input is read once before anything is
-    written, so an unreadable file leaves no output.
+    input's file name, then grid row, column, well label, plaques; blank for a well judged uncountable). Every
+    input is read once before anything is written, so an unreadable file leaves no output.
 
     Returns
     -------
@@ -183,13 +187,13 @@ def predict_files(
     rows = []
     for path in paths:
         result = predict_image(model, read_image(path), thresholds, plate_format, from_below)
-        counts = result.plaque_counts()
+        counts = result.well_counts()
         params = {
             "source": str(path),
             "thresholds": thresholds or {n: [b.prob_thresh, b.nms_thresh] for n, b in model.config.branches.items()},
         }
         write_item(item_paths(out_dir, path.stem), result, params)
-        rows += [(path.name, w.row, w.col, w.label, counts[w.id]) for w in result.well_info]
+        rows += [(path.name, w.row, w.col, w.label, "" if counts[w.id] is None else counts[w.id]) for w in result.well_info]
         if progress is not None:
             progress(path)
     return write_count_table(out_dir / "counts.csv", rows)

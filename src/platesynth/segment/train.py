@@ -26,6 +26,7 @@ from platesynth.data.layout import DatasetItem, list_items, load_item, read_mani
 from platesynth.errors import DatasetError, ParameterError
 from platesynth.io import atomic_path, write_json
 from platesynth.render.result import plaque_counts
+from platesynth.segment.countability import tune_on_items as tune_countability
 from platesynth.segment.data import Augmentation, MixSampler, SegmentationDataset
 from platesynth.segment.loss import segmentation_loss
 from platesynth.segment.matching import match_instances
@@ -340,6 +341,8 @@ def train(
     }
     for name, (prob, nms) in thresholds.items():
         best.config.branches[name].prob_thresh, best.config.branches[name].nms_thresh = prob, nms
+    if config.tune_thresholds:
+        best.config.countable_min_stained = tune_countability(val_items)
     best.config.training = {
         **_describe_data(config, train_sets, val_sets),
         "recipe": config.model_dump(mode="json", exclude={"data", "mix"}),

@@ -159,7 +159,7 @@ def render_blender(
         from platesynth.render.postprocess import jpeg_roundtrip
 
         image = jpeg_roundtrip(image, scene.post.jpeg.strength)
-    well_info = [WellInfo(id=w.id, row=w.row, col=w.col, label=w.label) for w in scene.wells]
+    well_info = [WellInfo(id=w.id, row=w.row, col=w.col, label=w.label, countable=w.countable) for w in scene.wells]
     return RenderResult(image=np.ascontiguousarray(image), wells=wells.astype(np.uint8), plaques=renumber(plaques.astype(np.uint16)), well_info=well_info)
 
 
