@@ -21,9 +21,9 @@ from platesynth.render.blender import (
     bpy_available,
     export_blend,
     render_blender,
-    renumber,
 )
 from platesynth.render.blender.describe import camera_pose
+from platesynth.render.masks import renumber
 from platesynth.render.raster import camera_view, render_raster
 from platesynth.scene import load_config, sample_scene
 

@@ -35,6 +35,18 @@ Overrides = Annotated[
     typer.Option("--set", help="Override one parameter, e.g. --set plaques.radius_mm=[0.5,1.0]; repeatable."),
 ]
 Backend = Annotated[str, typer.Option("--backend", help="Renderer: raster (fast, numpy) or blender.")]
+Samples = Annotated[
+    int | None,
+    typer.Option("--samples", help="Blender: samples per pixel of the image (default: $PLATESYNTH_BLENDER_SAMPLES, else 3)."),
+]
+Engine = Annotated[
+    str | None,
+    typer.Option("--engine", help="Blender: CYCLES or BLENDER_EEVEE (default: $PLATESYNTH_BLENDER_ENGINE, else CYCLES)."),
+]
+Device = Annotated[
+    str | None,
+    typer.Option("--device", help="Blender: auto (a GPU where there is one), CPU or GPU (default: $PLATESYNTH_BLENDER_DEVICE, else auto)."),
+]
 
 
 def parse_size(text: str) -> tuple[int, int]:
@@ -118,6 +130,9 @@ def render(
     config: ConfigFile = None,
     overrides: Overrides = None,
     backend: Backend = "raster",
+    samples: Samples = None,
+    engine: Engine = None,
+    device: Device = None,
     workers: Annotated[
         int, typer.Option("--workers", "-j", help="Local worker processes (or Dask LocalCluster workers).")
     ] = 1,
@@ -141,6 +156,9 @@ def render(
         count=count,
         size=parse_size(size),
         backend=backend,
+        samples=samples,
+        engine=engine,
+        device=device,
         coco=coco,
     )
     check_directory(out, manifest, overwrite)
@@ -164,6 +182,9 @@ def preview(
     config: ConfigFile = None,
     overrides: Overrides = None,
     backend: Backend = "raster",
+    samples: Samples = None,
+    engine: Engine = None,
+    device: Device = None,
     columns: Annotated[int, typer.Option("--columns", help="Images per row.")] = 4,
     outlines: Annotated[bool, typer.Option("--outlines/--no-outlines", help="Draw well and plaque outlines.")] = True,
 ) -> None:
@@ -184,6 +205,9 @@ def preview(
         count=count,
         size=parse_size(size),
         backend=backend,
+        samples=samples,
+        engine=engine,
+        device=device,
     )
     tiles = []
     with progress_bar() as bar:

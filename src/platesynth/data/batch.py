@@ -19,8 +19,8 @@ from platesynth import __version__
 from platesynth.data.executor import Executor, SerialExecutor
 from platesynth.data.layout import DatasetItem, Manifest, item_name, item_paths, read_params
 from platesynth.data.writer import finished_items, prepare_directory, write_counts_csv, write_item, write_manifest
-from platesynth.errors import DatasetError, ParameterError
-from platesynth.render import BACKENDS, render
+from platesynth.errors import DatasetError, ParameterError, RenderError
+from platesynth.render import BACKENDS, render, render_options, renderer_settings
 from platesynth.render.result import RenderResult, check_size
 from platesynth.scene import Scene, SceneConfig, load_config, sample_scene
 
@@ -40,6 +40,9 @@ def build_manifest(
     count: int = 1,
     size: tuple[int, int] = (1024, 768),
     backend: str = "raster",
+    samples: int | None = None,
+    engine: str | None = None,
+    device: str | None = None,
     coco: bool = False,
 ) -> Manifest:
     """Validate a dataset request and describe it as a :class:`~platesynth.data.layout.Manifest`.
@@ -56,13 +59,20 @@ def build_manifest(
         Image size in pixels.
     backend : str
         Renderer name (see :data:`platesynth.render.BACKENDS`).
+    samples, engine, device
+        Blender's settings (see :func:`platesynth.render.blender.blender_settings`); where not given, their
+        environment variables or defaults. The manifest records them (``renderer``, with the backend and its
+        version: Blender's, or platesynth's for the raster renderer) and every item is rendered with them.
     coco : bool
         Also write ``annotations.coco.json``.
 
     Raises
     ------
     ParameterError
-        For a bad count, seed, size or backend, or an invalid scene configuration.
+        For a bad count, seed, size, backend or renderer setting, Blender settings for the raster backend, or an
+        invalid scene configuration.
+    RenderError
+        For the Blender backend where bpy is not installed.
     """
     if count <= 0:
         raise ParameterError(f"count must be > 0, got {count}")
@@ -71,6 +81,8 @@ def build_manifest(
     width, height = check_size(size)
     if backend not in BACKENDS:
         raise ParameterError(f"unknown backend {backend!r} (choose from {', '.join(BACKENDS)})")
+    options = {key: value for key, value in {"samples": samples, "engine": engine, "device": device}.items() if value is not None}
+    renderer = renderer_settings(backend, **options)
     config = load_config(preset=preset, path=config_file, overrides=overrides)
     return Manifest(
         platesynth_version=__version__,
@@ -82,6 +94,7 @@ def build_manifest(
         count=count,
         size=(width, height),
         backend=backend,
+        renderer=renderer,
         coco=coco,
     )
 
@@ -93,14 +106,27 @@ def render_item(manifest: Manifest, index: int) -> tuple[RenderResult, dict[str,
     -------
     result : RenderResult
     params : dict
-        Everything needed to render the image again (see :func:`rerender`): version, seeds, size, backend and
-        the concrete scene.
+        Everything needed to render the image again (see :func:`rerender`): version, seeds, size, backend, the
+        renderer's settings (``renderer``; with Blender also ``device_used``, the device that rendered it) and the
+        concrete scene.
+
+    Raises
+    ------
+    RenderError
+        Also where this process would render with another renderer than the manifest records (e.g. another
+        platesynth or Blender version on a cluster's worker).
     """
     config = SceneConfig.model_validate(manifest.config)
     seed = item_seed(manifest.seed, index)
     scene = sample_scene(config, seed)
     size = tuple(manifest.size)
-    result = render(scene, size=size, backend=manifest.backend)
+    options = render_options(manifest.renderer)
+    if manifest.renderer and (here := renderer_settings(manifest.backend, **options)) != manifest.renderer:
+        differ = ", ".join(f"{k} {here.get(k)!r}" for k in {**here, **manifest.renderer} if here.get(k) != manifest.renderer.get(k))
+        raise RenderError(f"this process would render with {differ}, not as the dataset records: {manifest.renderer}")
+    stats: dict[str, Any] = {}
+    extra = {"stats": stats} if manifest.backend == "blender" else {}  # Blender reports the device it used
+    result = render(scene, size=size, backend=manifest.backend, **options, **extra)
     params = {
         "platesynth_version": __version__,
         "index": index,
@@ -108,17 +134,24 @@ def render_item(manifest: Manifest, index: int) -> tuple[RenderResult, dict[str,
         "seed": seed,
         "size": list(size),
         "backend": manifest.backend,
+        "renderer": manifest.renderer,
+        **({"device_used": stats["device"]} if stats.get("device") else {}),
         "scene": scene.model_dump(mode="json"),
     }
     return result, params
 
 
 def rerender(params: dict[str, Any] | DatasetItem) -> RenderResult:
-    """Render an item again from its params (a dict, or a :class:`DatasetItem` whose params file is read)."""
+    """Render an item again from its params (a dict, or a :class:`DatasetItem` whose params file is read).
+
+    With the renderer's recorded settings (``renderer``; params written before they were recorded: the backend's
+    defaults). The same image, byte for byte, needs the same renderer version (``renderer["version"]``).
+    """
     if isinstance(params, DatasetItem):
         params = read_params(params)
     scene = Scene.model_validate(params["scene"])
-    return render(scene, size=tuple(params["size"]), backend=params["backend"])
+    options = render_options(params.get("renderer") or {})
+    return render(scene, size=tuple(params["size"]), backend=params["backend"], **options)
 
 
 MAX_LOG_CHARS = 8000

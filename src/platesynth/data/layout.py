@@ -26,7 +26,7 @@ from pathlib import Path
 from typing import Any, NamedTuple
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field, ValidationError
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
 from platesynth.errors import DatasetError, EmptyDatasetError
 from platesynth.io import image_size, read_image, read_mask, to_rgb_uint8
@@ -112,19 +112,41 @@ class Manifest(BaseModel):
     count: int = Field(gt=0)
     size: tuple[int, int]
     backend: str
+    renderer: dict[str, Any] = Field(default_factory=dict)
     coco: bool = False
     failed: dict[str, str] = Field(default_factory=dict)
+
+    @model_validator(mode="after")
+    def _renderer_of_the_backend(self) -> Manifest:
+        if not self.renderer and self.backend == "raster":  # written before the renderer was recorded
+            self.renderer = {"backend": "raster", "version": self.platesynth_version}
+        if self.renderer and self.renderer.get("backend") != self.backend:
+            raise ValueError(f"renderer {self.renderer.get('backend')!r} is not the backend {self.backend!r}")
+        return self
 
     def identity(self) -> dict[str, Any]:
         """The fields that decide what every item looks like (everything but count, outputs and failures)."""
         return self.model_dump(
-            mode="json", include={"format", "format_version", "platesynth_version", "config", "seed", "size", "backend"}
+            mode="json",
+            include={"format", "format_version", "platesynth_version", "config", "seed", "size", "backend", "renderer"},
         )
 
     def differences(self, other: Manifest) -> list[str]:
-        """Names of the identity fields in which ``other`` differs from this manifest."""
+        """Names of the identity fields in which ``other`` differs from this manifest.
+
+        The renderer's settings are named one by one (``renderer.samples``), unless the backend itself differs.
+        """
         mine, theirs = self.identity(), other.identity()
-        return [key for key in mine if mine[key] != theirs.get(key)]
+        names = []
+        for key in mine:
+            if mine[key] == theirs.get(key) or (key == "renderer" and "backend" in names):
+                continue
+            if key == "renderer":
+                settings = {**mine[key], **theirs[key]}
+                names += [f"renderer.{k}" for k in settings if mine[key].get(k) != theirs[key].get(k)]
+            else:
+                names.append(key)
+        return names
 
 
 def read_manifest(directory: str | os.PathLike) -> Manifest | None:

@@ -124,7 +124,13 @@ def check_directory(directory: str | os.PathLike, manifest: Manifest, overwrite:
     if existing is None:
         problem = f"not empty and holds no platesynth dataset ({MANIFEST_NAME}); choose another directory"
     elif differences := existing.differences(manifest):
-        problem = f"holds a different dataset ({', '.join(differences)} differ); choose another directory"
+        settings = [
+            f"{name} {existing.renderer.get(key)!r} there, {manifest.renderer.get(key)!r} asked"
+            for name in differences
+            if name.startswith("renderer.") and (key := name.removeprefix("renderer."))
+        ]
+        detail = f": {'; '.join(settings)}" if settings else ""
+        problem = f"holds a different dataset ({', '.join(differences)} differ{detail}); choose another directory"
     elif manifest.count < existing.count:
         problem = (
             f"holds a dataset of {existing.count} images, asked for {manifest.count}; "

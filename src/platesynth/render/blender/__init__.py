@@ -14,16 +14,18 @@ Examples
 
 from __future__ import annotations
 
+import functools
+import importlib.metadata
 import importlib.util
 import os
 import shutil
 from pathlib import Path
+from typing import Any
 
 import numpy as np
-import tifffile
 
 from platesynth.errors import ImageReadError, ParameterError, RenderError
-from platesynth.io import read_image
+from platesynth.io import read_image, read_mask
 from platesynth.render.blender.describe import describe_scene
 from platesynth.render.blender.pool import (
     BlenderScriptError,
@@ -34,12 +36,19 @@ from platesynth.render.blender.pool import (
     default_pool,
     setting_from_env,
 )
+from platesynth.render.masks import renumber
 from platesynth.render.result import RenderResult, WellInfo, check_size
 from platesynth.scene.concrete import Scene
 
 ENGINES = ("CYCLES", "BLENDER_EEVEE")
 DEVICES = ("auto", "CPU", "GPU")
 DEFAULT_SAMPLES = 3
+SAMPLES_VARIABLE, ENGINE_VARIABLE, DEVICE_VARIABLE = (
+    "PLATESYNTH_BLENDER_SAMPLES",
+    "PLATESYNTH_BLENDER_ENGINE",
+    "PLATESYNTH_BLENDER_DEVICE",
+)
+"""The environment variables that give the image pass's samples, engine and device where the caller does not."""
 
 
 def bpy_available() -> bool:
@@ -47,8 +56,54 @@ def bpy_available() -> bool:
     return importlib.util.find_spec("bpy") is not None
 
 
+@functools.lru_cache(maxsize=1)
+def blender_version() -> str | None:
+    """The installed ``bpy``'s version (e.g. ``"5.0.1"``) from its package metadata, without importing it; ``None``
+    where it is not installed."""
+    try:
+        return importlib.metadata.version("bpy")
+    except importlib.metadata.PackageNotFoundError:
+        return None
+
+
+def blender_settings(
+    samples: int | None = None, engine: str | None = None, device: str | None = None, denoise: bool = False
+) -> dict[str, Any]:
+    """Everything besides the scene and the size that decides a Blender image, checked, defaults filled in.
+
+    ``samples``, ``engine`` and ``device`` default to :data:`SAMPLES_VARIABLE`, :data:`ENGINE_VARIABLE` and
+    :data:`DEVICE_VARIABLE`, then to :data:`DEFAULT_SAMPLES`, ``"CYCLES"`` and ``"auto"``; engine and device names
+    are case-insensitive.
+
+    Returns
+    -------
+    dict
+        ``{"version": bpy's version, "engine": ..., "samples": ..., "device": ..., "denoise": ...}``, as a dataset
+        records it.
+
+    Raises
+    ------
+    ParameterError
+        For a bad sample count, engine or device.
+    RenderError
+        Where bpy is not installed.
+    """
+    if samples is None:
+        samples = int(setting_from_env(SAMPLES_VARIABLE, DEFAULT_SAMPLES))
+    engine = str(engine or os.environ.get(ENGINE_VARIABLE) or "CYCLES").upper()
+    device = str(device or os.environ.get(DEVICE_VARIABLE) or "auto")
+    device = {d.lower(): d for d in DEVICES}.get(device.lower(), device)
+    _check_settings(samples, engine, device)
+    return {"version": blender_version(), "engine": engine, "samples": int(samples), "device": device, "denoise": bool(denoise)}
+
+
 def _check(size: tuple[int, int], samples: int, engine: str, device: str) -> tuple[int, int]:
     width, height = check_size(size)
+    _check_settings(samples, engine, device)
+    return width, height
+
+
+def _check_settings(samples: int, engine: str, device: str) -> None:
     if not 1 <= int(samples) <= 4096:
         raise ParameterError(f"samples must be in [1, 4096], got {samples}")
     if engine not in ENGINES:
@@ -57,26 +112,6 @@ def _check(size: tuple[int, int], samples: int, engine: str, device: str) -> tup
         raise ParameterError(f"device must be one of {', '.join(DEVICES)}, got {device!r}")
     if not bpy_available():
         raise RenderError("the Blender backend needs bpy: pip install 'platesynth[blender]' (bpy 5.0.1, Python 3.11)")
-    return width, height
-
-
-def renumber(ids: np.ndarray) -> np.ndarray:
-    """Renumber the plaque ids present in a mask to 1..m, keeping their order (hidden plaques leave no gap)."""
-    present = np.unique(ids)
-    present = present[present > 0]
-    lookup = np.zeros(int(ids.max()) + 1 if ids.size else 1, dtype=np.uint16)
-    lookup[present] = np.arange(1, len(present) + 1, dtype=np.uint16)
-    return lookup[ids]
-
-
-def _read_mask(path: str, what: str) -> np.ndarray:
-    try:
-        mask = tifffile.imread(path)
-    except (OSError, ValueError, tifffile.TiffFileError) as exc:
-        raise RenderError(f"Blender's {what} mask {path} cannot be read: {exc}") from None
-    if mask.ndim == 3:
-        mask = mask[..., 0]
-    return mask
 
 
 def render_blender(
@@ -84,8 +119,8 @@ def render_blender(
     size: tuple[int, int] = (1024, 768),
     *,
     samples: int | None = None,
-    engine: str = "CYCLES",
-    device: str = "auto",
+    engine: str | None = None,
+    device: str | None = None,
     denoise: bool = False,
     timeout: float | None = None,
     pool: BlenderWorkerPool | None = None,
@@ -99,8 +134,10 @@ def render_blender(
     size : (width, height) in pixels.
     samples : Cycles samples per pixel (EEVEE: TAA samples) of the image pass; default
         ``$PLATESYNTH_BLENDER_SAMPLES`` or :data:`DEFAULT_SAMPLES`.
-    engine : ``"CYCLES"`` or ``"BLENDER_EEVEE"`` (the mask pass always uses Cycles).
-    device : ``"auto"`` (a CUDA/OptiX GPU where Cycles finds one, else the CPU), ``"CPU"`` or ``"GPU"``.
+    engine : ``"CYCLES"`` or ``"BLENDER_EEVEE"`` (the mask pass always uses Cycles); default
+        ``$PLATESYNTH_BLENDER_ENGINE`` or ``"CYCLES"``.
+    device : ``"auto"`` (a CUDA/OptiX GPU where Cycles finds one, else the CPU), ``"CPU"`` or ``"GPU"``; default
+        ``$PLATESYNTH_BLENDER_DEVICE`` or ``"auto"``. See :func:`blender_settings`.
     denoise : denoise the image pass (OpenImageDenoise, fast quality).
     timeout : seconds one image may take (default: the pool's).
     pool : the worker pool to use (default: a process-wide pool started on first use, closed at exit).
@@ -121,9 +158,8 @@ def render_blender(
         Where bpy is missing, Blender raised (:class:`BlenderScriptError`) or its worker crashed or hung twice
         (:class:`BlenderWorkerError`, with Blender's log in ``log``).
     """
-    if samples is None:
-        samples = int(setting_from_env("PLATESYNTH_BLENDER_SAMPLES", DEFAULT_SAMPLES))
-    width, height = _check(size, samples, engine, device)
+    settings = blender_settings(samples, engine, device, denoise)
+    width, height = _check(size, settings["samples"], settings["engine"], settings["device"])
     pool = pool or default_pool()
     out_dir = pool.new_output_dir()
     try:
@@ -131,7 +167,7 @@ def render_blender(
             {
                 "op": "render",
                 "scene": describe_scene(scene, (width, height), out_dir),
-                "options": {"samples": int(samples), "engine": engine, "device": device, "denoise": bool(denoise)},
+                "options": {key: settings[key] for key in ("samples", "engine", "device", "denoise")},
                 "out_dir": str(out_dir),
             },
             timeout=timeout,
@@ -143,10 +179,10 @@ def render_blender(
             )
         try:
             image = read_image(files["image"])
+            wells = read_mask(files["well_id"], first_channel=True)
+            plaques = read_mask(files["plaque_id"], first_channel=True)
         except ImageReadError as exc:
-            raise RenderError(f"Blender's image cannot be read: {exc}") from None
-        wells = _read_mask(files["well_id"], "well")
-        plaques = _read_mask(files["plaque_id"], "plaque")
+            raise RenderError(f"Blender's output cannot be read: {exc}") from None
     finally:
         shutil.rmtree(out_dir, ignore_errors=True)
     if image.shape[:2] != (height, width) or wells.shape != (height, width) or plaques.shape != (height, width):
@@ -216,12 +252,13 @@ __all__ = [
     "BlenderWorkerPool",
     "DEFAULT_SAMPLES",
     "blender_home",
+    "blender_settings",
+    "blender_version",
     "bpy_available",
     "close_default_pool",
     "default_pool",
     "describe_scene",
     "export_blend",
     "render_blender",
-    "renumber",
     "warm_up",
 ]
