@@ -41,11 +41,11 @@ def test_presets_load_and_sample_json_roundtrip(preset):
 # sha256 of sample_scene(load_config(preset), 3).model_dump_json(): sampling must not change without intent (a change
 # here changes every dataset rendered from these presets). Update only for a deliberate change of the sampling.
 SCENE_SHA256_SEED3 = {
-    "diverse": "8e8371e0d636643bc8d1496e103794caaedae90202efac1ccb784834a5ced813",
-    "high": "850501973318765aabccb15cbd89adb9b84ab30f6ae69f26ffbf25750eae6568",
-    "lightbox12": "8212fafc04298e5c04c25e50efba44b624ea3e979df141fe754ad51e9e91fa9f",
-    "low": "a89a0d79ad64f921b0c096a4cb5da98598df97b34238bdb83656f7960e8df72d",
-    "medium": "c83460e0a5fb731d6ac8c3ea8e7c1ec68b108f564dc7058a0451c83f631f38ab",
+    "diverse": "247cbedd3d5a73e8d3f9bce31d40c2f0b7a99fd4fa49c422796a5c4c4a874f66",
+    "high": "2d558c9e730b309c346f218cc5a7e2c5d73bc39aa615be836aa625b4dcb87be6",
+    "lightbox12": "b762144c1c38b2fa9ef5105dad7645cc6d179f2b86aac9c8775b05bbb1336b5d",
+    "low": "3dad07a3780e7983b4b069ca7d99057a3af31c7e7135a4bb4b0e8865b879ad2f",
+    "medium": "d01f56015b15b673dd4a83feae10435e768f199e05a572a1a149c40fd015b23c",
 }
 
 

@@ -61,14 +61,16 @@ LYSED_CLOUD_CENTRE, LYSED_CLOUD_NOISE = 0.55, 0.25
 """The cloud of remnants: weight of the well's centre gradient and of the unevenness grid (read shifted)."""
 LYSED_CLOUD_SHIFT = 17.0
 """The cloud reads the unevenness grid this many cells to the right, so it does not echo the stain's blotches."""
-LYSED_BASE, LYSED_STRAND_SHARE, LYSED_STRANDS = 0.04, 0.6, 0.15
-"""Remnant = base + cloud * (1 - share + share * strands) + LYSED_STRANDS * strands (clipped to [0, 1])."""
+LYSED_STRAND_SHARE, LYSED_STRANDS = 0.6, 0.15
+"""Remnant = ``stain.lysed_residue`` + cloud * (1 - share + share * strands) + LYSED_STRANDS * strands (clipped to
+[0, 1]), the strands scaled by ``stain.lysed_strands`` and the whole by the granular ``stain.lysed_grain``."""
 LYSED_STRAND_FINE = 0.4
 """Strands vary along their length with the drying texture by this share."""
-LYSED_KEEP = 0.6
-"""A lysed layer keeps this share of its density where the remnant is full..."""
+LYSED_FLAKE_CELL_MM = 0.15
+"""Cell of the flakes of a lysed well's remnant (the mottle tile read at this coarser cell)."""
 LYSED_RIM_LOSS, LYSED_RIM_MM = 0.7, 1.5
-"""...and loses this much more within this distance of the rim."""
+"""A lysed layer keeps ``stain.lysed_density`` of its density where the remnant is full, and loses this much more
+within this distance of the rim."""
 
 # ---- plaques
 EDGE_SPAN = 1.5
@@ -118,6 +120,10 @@ STAIN_DTYPE = np.dtype(
         ("translucency", np.float64),
         ("rim_mottle", np.float64),
         ("rim_mottle_mm", np.float64),
+        ("lysed_density", np.float64),
+        ("lysed_residue", np.float64),
+        ("lysed_strands", np.float64),
+        ("lysed_grain", np.float64),
         ("absorbance_r", np.float64),  # -log of the stain's linear colour: the absorbance at density 1
         ("absorbance_g", np.float64),
         ("absorbance_b", np.float64),
@@ -161,7 +167,8 @@ def stain_table(scene: Scene, textures: SceneTextures) -> np.ndarray:
     absorbance = -np.log(np.clip(srgb_to_linear(stain_rgb(stain)), 1e-3, 1.0))
     table = np.zeros(1, dtype=STAIN_DTYPE)
     table[0] = (stain.unevenness, textures.low_cell_mm, stain.centre_elongation, stain.rim_clearing_mm,
-                stain.translucency, stain.rim_mottle, stain.rim_mottle_mm, *absorbance)
+                stain.translucency, stain.rim_mottle, stain.rim_mottle_mm, stain.lysed_density, stain.lysed_residue, stain.lysed_strands,
+                stain.lysed_grain, *absorbance)
     return table
 
 
@@ -221,11 +228,16 @@ def monolayer_density(u, v, du, dv, dist, radius, well, stain, low_grid, fibre_g
         # what is left of a lysed layer: a cloud around the centre and a network of strands
         fibre = grid_sample(fibre_grid, u / FIBRE_CELL_MM, v / FIBRE_CELL_MM)
         strands = (1.0 - min(abs(fibre), 1.0)) ** 2 * (1.0 - LYSED_STRAND_FINE + LYSED_STRAND_FINE * fine)
+        if stain.lysed_strands != 1.0:
+            strands *= stain.lysed_strands
         cloud = LYSED_CLOUD_CENTRE * gradient + LYSED_CLOUD_NOISE * grid_sample(
             low_grid, u / low_cell + LYSED_CLOUD_SHIFT, v / low_cell)
-        remnant = clip01(LYSED_BASE + cloud * (1.0 - LYSED_STRAND_SHARE + LYSED_STRAND_SHARE * strands)
+        remnant = clip01(stain.lysed_residue + cloud * (1.0 - LYSED_STRAND_SHARE + LYSED_STRAND_SHARE * strands)
                          + LYSED_STRANDS * strands)
-        density *= LYSED_KEEP * remnant * (1.0 - LYSED_RIM_LOSS * math.exp(-max(radius - dist, 0.0) / LYSED_RIM_MM))
+        if stain.lysed_grain > 0.0:  # flakes of what is left (the mottle tile, read in another place)
+            flakes = tile_sample(mottle_tile, (u + well.noise_x) / LYSED_FLAKE_CELL_MM, (v + well.noise_y) / LYSED_FLAKE_CELL_MM)
+            remnant *= max(1.0 + stain.lysed_grain * flakes, 0.0)
+        density *= stain.lysed_density * remnant * (1.0 - LYSED_RIM_LOSS * math.exp(-max(radius - dist, 0.0) / LYSED_RIM_MM))
     return density
 
 

@@ -107,6 +107,10 @@ class StainConfig(Section):
     translucency: Dist = number([0.0, 0.008], 0.0, 1.0, "", "fraction of light passing un-absorbed")
     rim_mottle: Dist = number(0.0, 0.0, 1.0, "", "how much paler the patches of a mottled band along the rim are")
     rim_mottle_mm: Dist = number(2.0, 0.1, 10.0, "mm", "width of the mottled band along the rim")
+    lysed_density: Dist = number(0.6, 0.0, 2.0, "", "density a lysed well keeps where its remnant is full, relative")
+    lysed_residue: Dist = number(0.04, 0.0, 1.0, "", "share of the layer a lysed well keeps everywhere (a pale film)")
+    lysed_strands: Dist = number(1.0, 0.0, 3.0, "", "strength of the network of strands a lysed well keeps")
+    lysed_grain: Dist = number(0.0, 0.0, 3.0, "", "granular texture of what a lysed well keeps")
     centre_gradient_factor: Dist = number([0.5, 1.0], 0.0, 2.0, "", "each well's factor on centre_gradient")
     centre_offset: Dist = number(0.15, 0.0, 1.0, "",
                                  "sd of a dark centre's offset from the well centre, per axis, fraction of its radius")

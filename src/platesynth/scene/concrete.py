@@ -74,6 +74,10 @@ class Stain(_Concrete):
     translucency: float = Field(description="fraction of light passing un-absorbed (gaps in the layer), 0..1")
     rim_mottle: float = Field(0.0, description="how much paler the patches of the mottled band along the rim are, 0..1")
     rim_mottle_mm: float = Field(2.0, description="width of the mottled band along the rim, mm")
+    lysed_density: float = Field(0.6, description="density a lysed well keeps where its remnant is full, relative")
+    lysed_residue: float = Field(0.04, description="share of the layer a lysed well keeps everywhere (a pale film)")
+    lysed_strands: float = Field(1.0, description="strength of the network of strands a lysed well keeps")
+    lysed_grain: float = Field(0.0, description="granular texture of what a lysed well keeps (relative, per sd)")
 
 
 class WellStain(_Concrete):

@@ -37,7 +37,7 @@ from platesynth.scene.concrete import (
     WellStain,
 )
 
-STAIN_DRAWN_LAST = ("rim_mottle", "rim_mottle_mm")
+STAIN_DRAWN_LAST = ("rim_mottle", "rim_mottle_mm", "lysed_density", "lysed_residue", "lysed_strands", "lysed_grain")
 """Stain parameters drawn after all others (added later; drawing them earlier would change every scene)."""
 SBS_LENGTH_MM, SBS_WIDTH_MM = 127.76, 85.48
 """The SBS footprint of every plate format."""
