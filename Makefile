@@ -8,7 +8,7 @@ BIN := $(VENV)/bin
 TORCH_SPEC ?= torch==2.13.0
 DEMO_OUT ?= demo-output
 
-.PHONY: demo test env env-test system-deps bench clean
+.PHONY: demo test lint env env-test system-deps bench clean
 
 $(BIN)/python:
 	$(PYTHON) -m venv $(VENV)
@@ -32,6 +32,10 @@ demo: env
 
 test: env-test
 	$(BIN)/python -m pytest -q
+
+# ruff's rules and exceptions are in pyproject.toml ([tool.ruff])
+lint: env-test
+	$(BIN)/ruff check
 
 bench: env-test
 	$(BIN)/python benchmarks/run_all.py

@@ -70,7 +70,7 @@ def timed(func, image: np.ndarray):
 
 
 def median_times(image: np.ndarray, repeats: int):
-    """granatpy's and our results and median seconds, the two timed in turns so that load affects both alike."""
+    """Granatpy's and our results and median seconds, the two timed in turns so that load affects both alike."""
     from granatpy.core import naturalize_rgb_image
 
     their_times, our_times = [], []

@@ -13,6 +13,7 @@ from PIL import Image
 
 from platesynth.data.batch import build_manifest, item_seed, render_dataset, rerender
 from platesynth.data.coco import PLAQUE_CATEGORY, WELL_CATEGORY, coco_dataset, decode_rle, encode_rle
+from platesynth.data.executor import ProcessExecutor
 from platesynth.data.layout import (
     COUNTS_COLUMNS,
     Manifest,
@@ -33,7 +34,6 @@ from platesynth.data.writer import (
     write_counts_csv,
     write_item,
 )
-from platesynth.data.executor import ProcessExecutor
 from platesynth.errors import DatasetError, EmptyDatasetError, ParameterError, RenderError
 from platesynth.render.result import RenderResult, WellInfo, plaque_counts
 

@@ -23,7 +23,6 @@ from platesynth.metrics.frechet import (
 )
 from platesynth.metrics.networks import AlexNetFeatures, FIDInceptionV3, ImageNetScaling, load_backbone_state
 
-
 # ---------------------------------------------------------------- references written out plainly
 
 def reference_frechet(a: np.ndarray, b: np.ndarray) -> float:

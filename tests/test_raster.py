@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from platesynth.errors import ParameterError, ShapeMismatchError
-from platesynth.render import render
 from platesynth.render import postprocess as pp
+from platesynth.render import render
 from platesynth.render.masks import clean_isolated_pixels
 from platesynth.render.raster import camera_view, render_raster
 from platesynth.render.result import plaque_counts

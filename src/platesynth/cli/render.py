@@ -2,84 +2,34 @@
 
 from __future__ import annotations
 
-import re
 from pathlib import Path
 from typing import Annotated, Any
 
 import typer
-import yaml
 from rich.progress import ProgressColumn, Task
 from rich.text import Text
 
 from platesynth.cli._common import console, print_json, print_table, progress_bar, user_errors
+from platesynth.cli.options import (
+    Backend,
+    BlenderDevice,
+    ConfigFile,
+    Engine,
+    Out,
+    Overrides,
+    Plate,
+    Preset,
+    Samples,
+    Seed,
+    parse_overrides,
+    parse_size,
+)
 from platesynth.data.batch import BatchSummary, build_manifest, render_dataset, render_item
 from platesynth.data.executor import EXECUTORS, make_executor
 from platesynth.data.layout import Manifest, list_items, load_item
 from platesynth.data.writer import check_directory
 from platesynth.errors import ParameterError
 from platesynth.io import write_png
-
-_SIZE = re.compile(r"^\s*(\d+)\s*[xX]\s*(\d+)\s*$")
-
-Out = Annotated[Path, typer.Option("--out", "-o", help="Output directory of the dataset.")]
-Seed = Annotated[int, typer.Option("--seed", help="Dataset seed: image i gets a seed derived from (seed, i).")]
-Preset = Annotated[str | None, typer.Option("--preset", help="Scene preset (see `platesynth scene presets`).")]
-Plate = Annotated[
-    int | None, typer.Option("--plate", help="Plate format: 6, 12, 24 or 96 wells (overrides the preset).")
-]
-ConfigFile = Annotated[
-    Path | None, typer.Option("--config", help="YAML scene configuration (applied over the preset).")
-]
-Overrides = Annotated[
-    list[str] | None,
-    typer.Option("--set", help="Override one parameter, e.g. --set plaques.radius_mm=[0.5,1.0]; repeatable."),
-]
-Backend = Annotated[str, typer.Option("--backend", help="Renderer: raster (fast, numpy) or blender.")]
-Samples = Annotated[
-    int | None,
-    typer.Option("--samples", help="Blender: samples per pixel of the image (default: $PLATESYNTH_BLENDER_SAMPLES, else 3)."),
-]
-Engine = Annotated[
-    str | None,
-    typer.Option("--engine", help="Blender: CYCLES or BLENDER_EEVEE (default: $PLATESYNTH_BLENDER_ENGINE, else CYCLES)."),
-]
-Device = Annotated[
-    str | None,
-    typer.Option("--device", help="Blender: auto (a GPU where there is one), CPU or GPU (default: $PLATESYNTH_BLENDER_DEVICE, else auto)."),
-]
-
-
-def parse_size(text: str) -> tuple[int, int]:
-    """``"1024x768"`` -> ``(1024, 768)`` (width, height).
-
-    Raises
-    ------
-    ParameterError
-        If the text is not ``WIDTHxHEIGHT`` with positive integers.
-    """
-    match = _SIZE.match(text)
-    if not match or min(int(match[1]), int(match[2])) <= 0:
-        raise ParameterError(f"size {text!r}: expected WIDTHxHEIGHT in pixels, e.g. 1024x768")
-    return int(match[1]), int(match[2])
-
-
-def parse_overrides(items: list[str] | None, plate: int | None = None) -> dict[str, Any]:
-    """``["plaques.radius_mm=[0.5, 1]"]`` -> ``{"plaques.radius_mm": [0.5, 1]}`` (values read as YAML).
-
-    ``plate``, if given, becomes ``plate.format``.
-    """
-    overrides: dict[str, Any] = {}
-    for item in items or []:
-        name, sep, value = item.partition("=")
-        if not sep or not name.strip():
-            raise ParameterError(f"--set {item!r}: expected NAME=VALUE, e.g. plate.format=24")
-        try:
-            overrides[name.strip()] = yaml.safe_load(value)
-        except yaml.YAMLError:
-            raise ParameterError(f"--set {item!r}: the value is not valid YAML") from None
-    if plate is not None:
-        overrides["plate.format"] = plate
-    return overrides
 
 
 class _RateColumn(ProgressColumn):
@@ -132,7 +82,7 @@ def render(
     backend: Backend = "raster",
     samples: Samples = None,
     engine: Engine = None,
-    device: Device = None,
+    device: BlenderDevice = None,
     workers: Annotated[
         int, typer.Option("--workers", "-j", help="Local worker processes (or Dask LocalCluster workers).")
     ] = 1,
@@ -184,7 +134,7 @@ def preview(
     backend: Backend = "raster",
     samples: Samples = None,
     engine: Engine = None,
-    device: Device = None,
+    device: BlenderDevice = None,
     columns: Annotated[int, typer.Option("--columns", help="Images per row.")] = 4,
     outlines: Annotated[bool, typer.Option("--outlines/--no-outlines", help="Draw well and plaque outlines.")] = True,
 ) -> None:
@@ -229,7 +179,9 @@ def demo(
     overwrite: Annotated[bool, typer.Option("--overwrite", help="Replace a different dataset found in --out.")] = False,
     model: Annotated[
         Path | None,
-        typer.Option("--model", help="A trained model directory: also count plaques per well and compare with the truth."),
+        typer.Option(
+            "--model", help="A trained model directory: also count plaques per well and compare with the truth."
+        ),
     ] = None,
 ) -> None:
     """Render a small 12-well dataset with counts and COCO, a contact sheet, and print its dataset metrics."""

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import json
-from pathlib import Path
 from typing import Annotated
 
 import typer
@@ -11,14 +10,10 @@ from rich.console import Console
 from rich.table import Table
 
 from platesynth.cli._common import print_json, user_errors
+from platesynth.cli.options import ConfigFile, Overrides, Preset, parse_overrides
 
 app = typer.Typer(help="Scene parameter catalogue, presets and sampled scenes.", no_args_is_help=True)
 
-Preset = Annotated[str | None, typer.Option("--preset", help="Scene preset (see `platesynth scene presets`).")]
-ConfigFile = Annotated[Path | None, typer.Option("--config", help="YAML scene configuration (applied over the preset).")]
-Overrides = Annotated[
-    list[str] | None, typer.Option("--set", help="Override one parameter, e.g. --set plate.format=24; repeatable.")
-]
 
 
 def _range_text(row: dict) -> str:
@@ -69,7 +64,6 @@ def presets(as_json: Annotated[bool, typer.Option("--json", help="Print JSON ins
 @user_errors
 def show(preset: Preset = None, config: ConfigFile = None, overrides: Overrides = None) -> None:
     """Print the full, validated configuration as YAML (a starting point for --config files)."""
-    from platesynth.cli.render import parse_overrides
     from platesynth.scene import dump_config, load_config
 
     typer.echo(dump_config(load_config(preset, config, parse_overrides(overrides))), nl=False)
@@ -84,7 +78,6 @@ def sample(
     overrides: Overrides = None,
 ) -> None:
     """Draw one concrete scene and print it as JSON."""
-    from platesynth.cli.render import parse_overrides
     from platesynth.scene import load_config, sample_scene
 
     scene = sample_scene(load_config(preset, config, parse_overrides(overrides)), seed)

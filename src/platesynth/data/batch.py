@@ -81,7 +81,8 @@ def build_manifest(
     width, height = check_size(size)
     if backend not in BACKENDS:
         raise ParameterError(f"unknown backend {backend!r} (choose from {', '.join(BACKENDS)})")
-    options = {key: value for key, value in {"samples": samples, "engine": engine, "device": device}.items() if value is not None}
+    given = {"samples": samples, "engine": engine, "device": device}
+    options = {key: value for key, value in given.items() if value is not None}
     renderer = renderer_settings(backend, **options)
     config = load_config(preset=preset, path=config_file, overrides=overrides)
     return Manifest(
@@ -122,7 +123,8 @@ def render_item(manifest: Manifest, index: int) -> tuple[RenderResult, dict[str,
     size = tuple(manifest.size)
     options = render_options(manifest.renderer)
     if manifest.renderer and (here := renderer_settings(manifest.backend, **options)) != manifest.renderer:
-        differ = ", ".join(f"{k} {here.get(k)!r}" for k in {**here, **manifest.renderer} if here.get(k) != manifest.renderer.get(k))
+        keys = {**here, **manifest.renderer}
+        differ = ", ".join(f"{k} {here.get(k)!r}" for k in keys if here.get(k) != manifest.renderer.get(k))
         raise RenderError(f"this process would render with {differ}, not as the dataset records: {manifest.renderer}")
     stats: dict[str, Any] = {}
     extra = {"stats": stats} if manifest.backend == "blender" else {}  # Blender reports the device it used

@@ -73,7 +73,8 @@ def renderer_settings(backend: str, **options: Any) -> dict[str, Any]:
     _check_backend(backend)
     if backend == "raster":
         if options:
-            raise ParameterError(f"{', '.join(sorted(options))}: Blender settings, which the raster backend does not take")
+            names = ", ".join(sorted(options))
+            raise ParameterError(f"{names}: Blender settings, which the raster backend does not take")
         return {"backend": "raster", "version": __version__}
     from platesynth.render.blender import blender_settings
 

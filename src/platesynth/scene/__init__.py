@@ -6,9 +6,9 @@ overrides, validation), :mod:`~platesynth.scene.sample` (seed -> concrete scene)
 """
 
 from platesynth.scene.catalogue import SceneConfig, parameter_names, parameter_table
+from platesynth.scene.concrete import Plaque, PlaqueLook, Scene, Well, load_scene
 from platesynth.scene.distributions import Categorical, Dist, DistVector
 from platesynth.scene.loading import dump_config, list_presets, load_config, validate_config
-from platesynth.scene.concrete import Plaque, PlaqueLook, Scene, Well, load_scene
 from platesynth.scene.sample import color_temperature_rgb, plate_geometry, sample_scene, stain_rgb
 
 __all__ = [

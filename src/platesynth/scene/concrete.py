@@ -14,7 +14,6 @@ Units and conventions (shared by the raster and the Blender renderer):
 from __future__ import annotations
 
 import json
-
 from pathlib import Path
 from typing import Literal
 

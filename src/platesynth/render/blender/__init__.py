@@ -94,7 +94,8 @@ def blender_settings(
     device = str(device or os.environ.get(DEVICE_VARIABLE) or "auto")
     device = {d.lower(): d for d in DEVICES}.get(device.lower(), device)
     _check_settings(samples, engine, device)
-    return {"version": blender_version(), "engine": engine, "samples": int(samples), "device": device, "denoise": bool(denoise)}
+    version = blender_version()
+    return {"version": version, "engine": engine, "samples": int(samples), "device": device, "denoise": bool(denoise)}
 
 
 def _check(size: tuple[int, int], samples: int, engine: str, device: str) -> tuple[int, int]:

@@ -17,6 +17,7 @@ from typing import Any
 import bpy
 
 from platesynth.render.blender.inside.materials import MASK_AOVS
+from platesynth.render.blender.inside.nodes import add, feed, link, output
 from platesynth.render.look import (
     BLOOM_RADIUS,
     BLOOM_THRESHOLD,
@@ -27,7 +28,6 @@ from platesynth.render.look import (
     NOISE_OWN,
     NOISE_SHARED,
 )
-from platesynth.render.blender.inside.nodes import add, feed, link, output
 
 IMAGE_FILE = "image"
 """The image pass's File Output item (written as ``image.png``)."""

@@ -18,7 +18,6 @@ import numpy as np
 
 from platesynth.render.blender.inside.nodes import add, feed, link, math, output, vector_math
 
-
 LAYER_STEP_MM = 1e-4
 """Distance between stacked plaques (later plaques lie nearer the camera): small enough to add no visible
 parallax, large enough for Cycles to tell the surfaces apart."""
