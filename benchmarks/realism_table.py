@@ -28,6 +28,8 @@ import time
 import warnings
 from pathlib import Path
 
+from shared_split import split_folder
+
 ROOT = Path(__file__).resolve().parents[1]
 SHARED = Path(os.environ.get("PLATESYNTH_SHARED", ROOT.parent / "shared"))
 COLUMNS = ("fd_alexnet", "kid_alexnet", "nf", "dnf", "entropy", "brightness_var", "fd_wells", "kid_wells",
@@ -73,12 +75,12 @@ def _render_preset(preset: str, count: int, size: tuple[int, int], compare: tupl
             return mask
         return np.asarray(Image.fromarray(mask).resize(compare, Image.Resampling.NEAREST))
 
-    config = load_config(preset)
+    config = load_config(path=preset) if preset.endswith(".yaml") else load_config(preset)
     start = time.perf_counter()
     for seed in range(count):
         scene = sample_scene(config, seed)
         result = render(scene, size)
-        item = item_paths(folder, f"{preset}_{seed:04d}")
+        item = item_paths(folder, f"{Path(preset).stem}_{seed:04d}")
         item.image_path.parent.mkdir(parents=True, exist_ok=True)
         _resized(result.image, compare).save(item.image_path)
         write_tiff(item.wells_path, nearest(result.wells))
@@ -92,7 +94,10 @@ def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--count", type=int, default=100, help="images per preset")
     parser.add_argument("--size", type=_size, default=(1216, 944), help="render size WIDTHxHEIGHT")
-    parser.add_argument("--presets", default="high,medium,low")
+    parser.add_argument("--presets", default="high,medium,low",
+                        help="comma-separated preset names or configuration files (*.yaml, labelled by their stem)")
+    parser.add_argument("--split", choices=("all", "fit", "check"), default="all",
+                        help="real photos to compare with: all, or the fit or check viruses (benchmarks/shared_split.py)")
     parser.add_argument("--reference", type=Path, default=SHARED / "data" / "plaque12" / "plates")
     parser.add_argument("--compare-size", type=_size, default=None, help="resize renders and photos to WIDTHxHEIGHT")
     parser.add_argument("--keep", type=Path, default=None, help="keep the renders in this folder")
@@ -115,6 +120,8 @@ def main(argv: list[str] | None = None) -> None:
     with tempfile.TemporaryDirectory() as tmp:
         work = args.keep or Path(tmp)
         reference = args.reference
+        if args.split != "all":
+            reference = split_folder(reference, args.split, Path(tmp) / f"reference-{args.split}")
         if args.compare_size:
             reference = _resized_reference(reference, args.compare_size, Path(tmp) / "reference")
         n_real = len(list_images(reference))
@@ -123,13 +130,13 @@ def main(argv: list[str] | None = None) -> None:
         rows: dict[str, dict[str, float]] = {}
         real_row: dict[str, float] = {}
         for preset in args.presets.split(","):
-            folder = work / preset
+            folder = work / Path(preset).stem
             seconds = _render_preset(preset, args.count, args.size, args.compare_size, folder)
             metrics = dataset_metrics(folder / "images", reference)
             wells = compare_well_crops(collect_well_crops(folder, extractor=extractor), real_wells)
             subset = min(args.count, n_real)
             shape = tuple(metrics["size"])
-            rows[preset] = {
+            rows[Path(preset).stem] = {
                 "fd_alexnet": metrics["fd_alexnet"],
                 "kid_alexnet": metrics["kid_alexnet"],
                 "nf": metrics["nf_mean"],

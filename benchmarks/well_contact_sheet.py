@@ -1,0 +1,81 @@
+"""A contact sheet of real and synthetic well crops, shuffled, to judge by eye which is which.
+
+Real wells are cropped from the shared 12-well photos with the fitted plate grid
+(:func:`platesynth.metrics.fit_plate_grid`), synthetic ones from raster renders of a preset at the photos' size with
+their true well masks; both at the same crop size. The tiles are shuffled (seeded) into one PNG; the key (which tile
+is real) is written beside it as a text file, so that a person can look first and check after.
+
+Run: ``python benchmarks/well_contact_sheet.py --out sheet.png`` (``--preset high``, ``--wells 24`` of each kind,
+``--split fit|check|all``, ``--tile 160``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+from pathlib import Path
+
+from shared_split import in_split
+
+ROOT = Path(__file__).resolve().parents[1]
+SHARED = Path(os.environ.get("PLATESYNTH_SHARED", ROOT.parent / "shared"))
+
+
+def main(argv: list[str] | None = None) -> None:
+    """Write the sheet and its key."""
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--out", type=Path, required=True, help="PNG to write (the key goes to OUT.key.txt)")
+    parser.add_argument("--preset", default="high")
+    parser.add_argument("--wells", type=int, default=24, help="wells of each kind")
+    parser.add_argument("--split", choices=("all", "fit", "check"), default="fit")
+    parser.add_argument("--tile", type=int, default=160, help="tile side in pixels")
+    parser.add_argument("--seed", type=int, default=0)
+    args = parser.parse_args(argv)
+
+    import numpy as np
+    from PIL import Image
+
+    from platesynth.io import list_images, read_image
+    from platesynth.metrics import crop_well, fit_plate_grid, wells_from_mask
+    from platesynth.render.raster import render_raster
+    from platesynth.scene import load_config, sample_scene
+
+    rng = np.random.default_rng(args.seed)
+    plates = [p for p in list_images(SHARED / "data" / "plaque12" / "plates") if in_split(p.name, args.split)]
+    if not plates:
+        raise SystemExit(f"no real photos of the {args.split} split under {SHARED}")
+    real = []
+    for path in rng.permutation(plates):
+        image = read_image(path)
+        discs = fit_plate_grid(image)
+        for index in rng.permutation(len(discs))[:3]:
+            real.append(crop_well(image, discs[index], args.tile))
+        if len(real) >= args.wells:
+            break
+    synthetic = []
+    config = load_config(args.preset)
+    seed = 0
+    while len(synthetic) < args.wells:
+        result = render_raster(sample_scene(config, 10_000 + seed), (1216, 944))
+        seed += 1
+        discs = wells_from_mask(result.wells)
+        for index in rng.permutation(len(discs))[:3]:
+            synthetic.append(crop_well(result.image, discs[index], args.tile))
+    tiles = [(tile, "real") for tile in real[: args.wells]] + [(tile, "synthetic") for tile in synthetic[: args.wells]]
+    order = rng.permutation(len(tiles))
+    columns = 8
+    rows = -(-len(tiles) // columns)
+    sheet = Image.new("RGB", (columns * args.tile, rows * args.tile), (255, 255, 255))
+    key = []
+    for position, index in enumerate(order):
+        tile, kind = tiles[index]
+        sheet.paste(Image.fromarray(tile), ((position % columns) * args.tile, (position // columns) * args.tile))
+        key.append(f"row {position // columns}, column {position % columns}: {kind}")
+    args.out.parent.mkdir(parents=True, exist_ok=True)
+    sheet.save(args.out)
+    Path(f"{args.out}.key.txt").write_text("\n".join(key) + "\n")
+    print(f"{args.out}: {len(tiles)} wells ({args.split} photos, preset {args.preset}); key in {args.out}.key.txt")
+
+
+if __name__ == "__main__":
+    main()

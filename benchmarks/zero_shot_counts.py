@@ -1,0 +1,74 @@
+"""Zero-shot plaque counts of a model on the shared real plates, on the fit and check halves and on all of them.
+
+For each model: MAE, RMSE, Pearson r and bias of the plaques per well against the person's counts (countable wells
+only), the number of wells, and how well it finds the uncountable wells (precision, recall of the blanks), from
+:func:`platesynth.segment.counts.evaluate_counts`. The split is by virus (``benchmarks/shared_split.py``): looks
+and models are tuned on the fit viruses, the check virus is only measured.
+
+Run: ``python benchmarks/zero_shot_counts.py`` (``--models DIR,DIR``, ``--threads T``, ``--table OUT.csv`` for the
+per-well records of the first model).
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import hashlib
+import os
+import tempfile
+from pathlib import Path
+
+from shared_split import split_counts
+
+ROOT = Path(__file__).resolve().parents[1]
+SHARED = Path(os.environ.get("PLATESYNTH_SHARED", ROOT.parent / "shared"))
+
+
+def main(argv: list[str] | None = None) -> None:
+    """Print the count agreement of each model on each split."""
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--models", default=str(ROOT / "models" / "plaque12"), help="comma-separated model folders")
+    parser.add_argument("--threads", type=int, default=2)
+    parser.add_argument("--table", type=Path, default=None, help="write the first model's per-well records here")
+    args = parser.parse_args(argv)
+    plates = SHARED / "data" / "plaque12" / "plates"
+    counts = SHARED / "data" / "plaque12" / "counts.csv"
+    if not counts.is_file():
+        raise SystemExit(f"{counts} not found: set PLATESYNTH_SHARED to the shared material")
+
+    import torch
+
+    from platesynth.segment.counts import evaluate_counts
+    from platesynth.segment.model import load_model
+    from platesynth.segment.predict import predict_image
+
+    torch.set_num_threads(args.threads)
+    print(f"{'model':28s} {'split':6s} {'wells':>5s} {'MAE':>6s} {'RMSE':>6s} {'r':>6s} {'bias':>6s} "
+          f"{'unc.':>5s} {'prec.':>6s} {'recall':>6s}")
+    with tempfile.TemporaryDirectory() as tmp:
+        for index, folder in enumerate(args.models.split(",")):
+            model = load_model(folder)
+            cache: dict[bytes, object] = {}
+
+            def predict(image, model=model, cache=cache):
+                key = hashlib.sha1(image.tobytes()).digest()
+                if key not in cache:
+                    cache[key] = predict_image(model, image)
+                return cache[key]
+
+            for split in ("fit", "check", "all"):
+                table = split_counts(counts, split, Path(tmp) / f"{split}.csv")
+                report = evaluate_counts(predict, plates, table, 12)
+                unc = report["countability"]
+                print(f"{Path(folder).name:28s} {split:6s} {report['n_wells']:5d} {report['mae']:6.2f} "
+                      f"{report['rmse']:6.2f} {report['pearson_r']:6.3f} {report['bias']:+6.2f} "
+                      f"{unc['n_uncountable']:5d} {unc['precision']:6.2f} {unc['recall']:6.2f}")
+                if index == 0 and split == "all" and args.table is not None:
+                    with args.table.open("w", newline="") as handle:
+                        writer = csv.DictWriter(handle, fieldnames=list(report["wells"][0]))
+                        writer.writeheader()
+                        writer.writerows(report["wells"])
+
+
+if __name__ == "__main__":
+    main()
