@@ -28,7 +28,7 @@ system-deps:
 	@sh scripts/install-system-deps.sh
 
 demo: env
-	$(BIN)/platesynth demo --out $(DEMO_OUT) --model models/plaque12-synthetic
+	$(BIN)/platesynth demo --out $(DEMO_OUT) --model models/plaque12
 
 test: env-test
 	$(BIN)/python -m pytest -q

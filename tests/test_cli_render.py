@@ -139,7 +139,7 @@ def test_demo(tmp_path):
 
 
 def test_demo_counts_plaques_with_the_shipped_model(tmp_path):
-    model = Path(__file__).resolve().parents[1] / "models" / "plaque12-synthetic"
+    model = Path(__file__).resolve().parents[1] / "models" / "plaque12"
     out = tmp_path / "demo"
     result = invoke("demo", "--out", out, "--count", 2, "--size", "320x240", "--model", model)
     assert result.exit_code == 0, result.output

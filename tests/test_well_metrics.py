@@ -360,7 +360,7 @@ def test_a_model_gives_the_wells_and_plaques_of_photos_without_masks(tmp_path, o
     from platesynth.render import render
     from platesynth.scene import load_config, sample_scene
 
-    model = Path(__file__).resolve().parents[1] / "models" / "plaque12-synthetic"
+    model = Path(__file__).resolve().parents[1] / "models" / "plaque12"
     if not (model / "weights.pt").is_file():
         pytest.skip(f"{model}: the shipped model is missing")
     photos = tmp_path / "photos"
