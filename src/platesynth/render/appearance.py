@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Protocol
 
 import numpy as np
 from numba import njit, prange
@@ -372,9 +373,9 @@ def draw_capsules(hinv, segments, values, boxes, pixel_mm, out):
                     out[y, x] = coverage
 
 
-class Sampling:
+class Sampling(Protocol):
     """Where a renderer evaluates the well content: an image of ``width`` x ``height`` points whose centres
-    ``(x + 0.5, y + 0.5)`` map to plate millimetres by ``px_to_plate`` (and back by ``plate_to_px``).
+    ``(x + 0.5, y + 0.5)`` map to plate millimetres by ``px_to_plate`` (and back by :meth:`project`).
 
     The raster renderer's camera view (:class:`platesynth.render.camera.View`) is one; :func:`texel_grid` gives
     the plate-space texture grid of the Blender backend.
@@ -382,15 +383,16 @@ class Sampling:
 
     width: int
     height: int
-    px_to_plate: np.ndarray
     px_per_mm: float
 
-    def project(self, points_mm: np.ndarray) -> np.ndarray:  # pragma: no cover - the protocol's signature
-        raise NotImplementedError
+    @property
+    def px_to_plate(self) -> np.ndarray: ...
+
+    def project(self, points_mm: np.ndarray) -> np.ndarray: ...
 
 
 @dataclass(frozen=True)
-class TexelGrid(Sampling):
+class TexelGrid:
     """A texture covering the plate from its corner at ``px_per_mm`` texels per mm (texel (0, 0) covers
     [0, 1/k) x [0, 1/k) mm; row 0 at plate y = 0)."""
 
@@ -400,9 +402,11 @@ class TexelGrid(Sampling):
 
     @property
     def px_to_plate(self) -> np.ndarray:
+        """Texel centres to plate millimetres (a scaling)."""
         return np.diag([1.0 / self.px_per_mm, 1.0 / self.px_per_mm, 1.0])
 
     def project(self, points_mm: np.ndarray) -> np.ndarray:
+        """Texel positions ``(..., 2)`` of plate points ``(..., 2)`` in mm."""
         return np.asarray(points_mm, dtype=np.float64) * self.px_per_mm
 
 
