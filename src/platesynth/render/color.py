@@ -1,10 +1,19 @@
-"""Colour encodings shared by the renderers: sRGB to linear light and back (as lookup tables for the kernels)."""
+"""Colour shared by the renderers: the light's colour, sRGB to linear light and back (lookup tables for the kernels)."""
 
 from __future__ import annotations
 
 from functools import lru_cache
 
 import numpy as np
+
+from platesynth.scene.sample import color_temperature_rgb
+
+
+def light_colour(kelvin: float) -> np.ndarray:
+    """Linear RGB gains (largest 1) of light of colour temperature ``kelvin`` as the camera's white balance left it;
+    the renderers multiply the scene's light by them (the raster renderer with the exposure, Blender's compositor)."""
+    white = np.asarray(color_temperature_rgb(kelvin))
+    return srgb_to_linear(white / white.max())
 
 
 def srgb_to_linear(rgb: np.ndarray) -> np.ndarray:

@@ -20,13 +20,12 @@ from PIL import Image, ImageDraw, ImageFont
 
 from platesynth.render import appearance, postprocess, shading
 from platesynth.render.camera import REFERENCE_WIDTH, View, camera_view
-from platesynth.render.color import gamma_lut, linear_lut, srgb_to_linear
+from platesynth.render.color import gamma_lut, light_colour, linear_lut, srgb_to_linear
 from platesynth.render.look import DESK_CELL_MM, DESK_SHEEN, RELIEF_EMBOSS, RELIEF_RAISED, TOP_EDGE_OFFSET_MM
 from platesynth.render.masks import renumber
 from platesynth.render.result import RenderResult, WellInfo, check_size
 from platesynth.render.textures import noise_grid, scene_rng, scene_textures
 from platesynth.scene.concrete import PlateGeometry, Scene, Well
-from platesynth.scene.sample import color_temperature_rgb
 
 __all__ = ["REFERENCE_WIDTH", "View", "camera_view", "render_raster", "srgb_to_linear", "texels_per_mm"]
 
@@ -144,9 +143,7 @@ def _frame(scene: Scene, view: View, top_radius: float) -> np.ndarray:
 
 def light_gains(scene: Scene) -> np.ndarray:
     """Linear RGB gains of the light's colour temperature and exposure."""
-    light = scene.lighting
-    white = np.asarray(color_temperature_rgb(light.color_temperature_k))
-    return srgb_to_linear(white / white.max()) * 2.0**light.exposure_ev
+    return light_colour(scene.lighting.color_temperature_k) * 2.0**scene.lighting.exposure_ev
 
 
 def render_raster(scene: Scene, size: tuple[int, int] = (1024, 768)) -> RenderResult:

@@ -28,11 +28,10 @@ import numpy as np
 from platesynth.errors import RenderError
 from platesynth.render.appearance import floor_texels_per_mm, floor_transmittance
 from platesynth.render.camera import REFERENCE_WIDTH, View, camera_view
-from platesynth.render.color import srgb_to_linear
+from platesynth.render.color import light_colour, srgb_to_linear
 from platesynth.render.raster import plate_relief, texels_per_mm
 from platesynth.render.textures import scene_textures
 from platesynth.scene.concrete import Scene
-from platesynth.scene.sample import color_temperature_rgb
 
 SENSOR_WIDTH_MM = 36.0
 FLOOR_THICKNESS_MM = 1.0
@@ -93,8 +92,7 @@ def describe_scene(scene: Scene, size: tuple[int, int], texture_dir: str | Path)
     camera_matrix, focal_px, (principal_x, principal_y) = camera_pose(scene, view)
     plate = scene.plate
     from_below = scene.camera.from_below
-    gains = np.asarray(color_temperature_rgb(scene.lighting.color_temperature_k))
-    gains = srgb_to_linear(gains / gains.max())  # as the raster renderer: the gains are display-encoded
+    gains = light_colour(scene.lighting.color_temperature_k)
     # what the plate rests on: its bottom sheet (seen from above) or its top (seen from below, upside down)
     support_z = plate.height_mm - FLOOR_THICKNESS_MM + 0.01 if from_below else -FLOOR_THICKNESS_MM - 0.01
     return {
