@@ -59,7 +59,8 @@ def _check_result(result: RenderResult, name: str) -> None:
 def well_records(result: RenderResult) -> list[dict[str, Any]]:
     """Per well of a rendered plate: id, grid row/col, label, the plaques in the masks and the count a person
     would report (``None``, a blank, where the well is not countable: lysed or emptied)."""
-    plaques, counts = result.plaque_counts(), result.well_counts()
+    plaques = result.plaque_counts()
+    counts = result.well_counts(plaques)
     return [
         {"id": w.id, "row": w.row, "col": w.col, "label": w.label, "plaques": plaques[w.id], "count": counts[w.id]}
         for w in sorted(result.well_info, key=lambda w: w.id)

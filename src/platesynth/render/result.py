@@ -48,9 +48,12 @@ class RenderResult:
         """Visible plaques per well id (a plaque belongs to the well holding most of its pixels)."""
         return plaque_counts(self.wells, self.plaques, [w.id for w in self.well_info])
 
-    def well_counts(self) -> dict[int, int | None]:
-        """Plaques per well id as a person reports them: ``None`` (a blank) for a well that is not countable."""
-        counts = self.plaque_counts()
+    def well_counts(self, plaques: dict[int, int] | None = None) -> dict[int, int | None]:
+        """Plaques per well id as a person reports them: ``None`` (a blank) for a well that is not countable.
+
+        ``plaques``: :meth:`plaque_counts`, where the caller has it already.
+        """
+        counts = self.plaque_counts() if plaques is None else plaques
         return {w.id: counts[w.id] if w.countable else None for w in self.well_info}
 
 

@@ -144,8 +144,9 @@ def predict_image(
     if masks["plaques"].max() > np.iinfo(np.uint16).max:
         raise ParameterError(f"{masks['plaques'].max()} plaques found; a uint16 plaque mask holds at most 65535")
     wells, info = sort_wells(masks["wells"], plate_format or model.config.plate_format, from_below)
-    countable = judge_countable(stained_fractions(rgb, wells), model.config.countable_min_stained)
-    info = [replace(w, countable=countable.get(w.id, True)) for w in info]
+    if model.config.countable_min_stained > 0:  # 0: every well countable (models trained before countability)
+        countable = judge_countable(stained_fractions(rgb, wells), model.config.countable_min_stained)
+        info = [replace(w, countable=countable.get(w.id, True)) for w in info]
     return RenderResult(rgb, wells, masks["plaques"].astype(np.uint16), info)
 
 
