@@ -231,6 +231,7 @@ def train(
     overwrite: bool = False,
     device: str = "auto",
     progress: Callable[[dict[str, Any]], None] | None = None,
+    before_writing: Callable[[], None] | None = None,
 ) -> TrainSummary:
     """Train a two-branch StarDist model, or resume the same training, into ``model_dir``.
 
@@ -244,19 +245,22 @@ def train(
     device : ``"auto"`` (CUDA where available), ``"cpu"``, ``"cuda"``...
     progress : called after every step with ``{"epoch", "step", "steps", "loss"}``, and after every epoch with
         ``{"epoch", "train_loss", "val_loss"}`` (``val_loss`` None without validation images).
+    before_writing : called once everything is validated, right before the first write into ``model_dir`` (the
+        command line claims the folder there, see :func:`platesynth.outputs.claim_output`).
 
     Raises
     ------
     DatasetError, EmptyDatasetError
         If a dataset is missing or inconsistent, or ``model_dir`` holds a different training.
     ParameterError
-        If the patch size does not suit the architecture.
+        If the patch size does not suit the architecture, or the device is not available.
     """
     model_dir = Path(model_dir)
     model_config = (model_config or ModelConfig()).model_copy(deep=True)
     multiple = model_config.size_multiple
-    if config.patch[0] % multiple or config.patch[1] % multiple:
-        raise ParameterError(f"patch {config.patch[0]}x{config.patch[1]} must be a multiple of {multiple} on both sides")
+    if min(config.patch) < 1 or config.patch[0] % multiple or config.patch[1] % multiple:
+        raise ParameterError(f"patch {config.patch[0]}x{config.patch[1]} must be a positive multiple of {multiple} on both sides")
+    torch_device = select_device(device)  # validated before anything is written
     datasets = [list_items(directory) for directory in config.data]
     splits = [split_items(items, config.val_fraction, config.seed + number) for number, items in enumerate(datasets)]
     train_sets, val_sets = [s[0] for s in splits], [s[1] for s in splits]
@@ -269,10 +273,11 @@ def train(
         load_item(item)
     identity = _identity(config, model_config)
     resume = _check_model_dir(model_dir, identity, overwrite)
+    if before_writing is not None:
+        before_writing()
     model_dir.mkdir(parents=True, exist_ok=True)
     write_json(model_dir / TRAIN_CONFIG_NAME, identity)
 
-    torch_device = select_device(device)
     torch.manual_seed(config.seed)
     model = StarDistTwoBranch(model_config).to(torch_device)
     optimizer = torch.optim.Adam(model.parameters(), lr=config.learning_rate)
