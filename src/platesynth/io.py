@@ -16,6 +16,7 @@ import tifffile
 from PIL import Image, UnidentifiedImageError
 
 from platesynth.errors import EmptyDatasetError, ImageReadError
+from platesynth.limits import open_image, read_tiff
 
 IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".tif", ".tiff", ".bmp", ".webp")
 
@@ -37,15 +38,17 @@ def read_image(path: str | os.PathLike) -> np.ndarray:
     ------
     ImageReadError
         If the file is missing, unreadable, corrupt, empty or not an image.
+    ResourceLimitError
+        If its header claims more pixels, or more memory, than the limits (:mod:`platesynth.limits`).
     """
     path = Path(path)
     if not path.is_file():
         raise ImageReadError(f"{path}: no such file")
     try:
         if path.suffix.lower() in (".tif", ".tiff"):
-            array = tifffile.imread(path)
+            array = read_tiff(path)
         else:
-            with Image.open(path) as img:
+            with open_image(path) as img:
                 img.load()
                 if img.mode in ("P", "PA", "CMYK", "YCbCr", "LAB", "HSV", "1"):
                     img = img.convert("RGBA" if "A" in img.mode or "transparency" in img.info else "RGB")
@@ -91,7 +94,7 @@ def read_mask(path: str | os.PathLike, first_channel: bool = False) -> np.ndarra
     if not path.is_file():
         raise ImageReadError(f"{path}: no such mask")
     try:
-        mask = tifffile.imread(path)
+        mask = read_tiff(path)
     except (OSError, ValueError, tifffile.TiffFileError) as exc:
         raise ImageReadError(f"{path}: cannot read mask ({exc.__class__.__name__}: {exc})") from None
     if first_channel and mask.ndim == 3:
@@ -108,10 +111,12 @@ def image_size(path: str | os.PathLike) -> tuple[int, int]:
     ------
     ImageReadError
         If the file is missing or not an image Pillow can open.
+    ResourceLimitError
+        If the header claims more pixels, or more memory, than the limits (:mod:`platesynth.limits`).
     """
     path = Path(path)
     try:
-        with Image.open(path) as img:
+        with open_image(path) as img:
             return img.size
     except (OSError, UnidentifiedImageError, ValueError) as exc:
         raise ImageReadError(f"{path}: cannot read image ({exc.__class__.__name__}: {exc})") from None

@@ -10,6 +10,7 @@ import typer
 import yaml
 
 from platesynth.errors import ParameterError
+from platesynth.limits import load_yaml
 
 _SIZE = re.compile(r"^\s*(\d+)\s*[xX]\s*(\d+)\s*$")
 
@@ -73,7 +74,7 @@ def parse_overrides(items: list[str] | None, plate: int | None = None) -> dict[s
         if not sep or not name.strip():
             raise ParameterError(f"--set {item!r}: expected NAME=VALUE, e.g. plate.format=24")
         try:
-            overrides[name.strip()] = yaml.safe_load(value)
+            overrides[name.strip()] = load_yaml(value, f"--set {item!r}")  # no aliases (platesynth.limits)
         except yaml.YAMLError:
             raise ParameterError(f"--set {item!r}: the value is not valid YAML") from None
     if plate is not None:

@@ -15,6 +15,7 @@ import yaml
 from pydantic import BaseModel, ValidationError
 
 from platesynth.errors import ParameterError
+from platesynth.limits import read_yaml_file
 from platesynth.scene.catalogue import SceneConfig, parameter_names, sections
 
 PRESET_DIR = Path(__file__).parent / "presets"
@@ -72,10 +73,8 @@ def list_presets() -> list[str]:
 
 
 def _read_yaml(path: Path) -> dict[str, Any]:
-    try:
-        data = yaml.safe_load(path.read_text())
-    except (OSError, yaml.YAMLError) as exc:
-        raise ParameterError(f"{path}: cannot read YAML ({exc.__class__.__name__}: {exc})".splitlines()[0]) from None
+    """A configuration file's mapping: UTF-8 YAML without anchors or aliases (:func:`platesynth.limits.read_yaml_file`)."""
+    data = read_yaml_file(path, ParameterError)
     if data is None:
         return {}
     if not isinstance(data, dict):
