@@ -42,10 +42,10 @@ def test_presets_load_and_sample_json_roundtrip(preset):
 # here changes every dataset rendered from these presets). Update only for a deliberate change of the sampling.
 SCENE_SHA256_SEED3 = {
     "diverse": "247cbedd3d5a73e8d3f9bce31d40c2f0b7a99fd4fa49c422796a5c4c4a874f66",
-    "high": "2d558c9e730b309c346f218cc5a7e2c5d73bc39aa615be836aa625b4dcb87be6",
+    "high": "d06e65b358760b57dbd203cf37fa8a0a7976cfa862779b542983cb10e2ac3f07",
     "lightbox12": "b762144c1c38b2fa9ef5105dad7645cc6d179f2b86aac9c8775b05bbb1336b5d",
     "low": "3dad07a3780e7983b4b069ca7d99057a3af31c7e7135a4bb4b0e8865b879ad2f",
-    "medium": "d01f56015b15b673dd4a83feae10435e768f199e05a572a1a149c40fd015b23c",
+    "medium": "9f1ba59007b86b85eb8d7e3b3cb1cb568931a37bb2d05b3ec1f7fe009d35c983",
 }
 
 
@@ -138,6 +138,26 @@ def test_max_overlap_zero_keeps_plaques_apart():
         for i, a in enumerate(plaques):
             for b in plaques[i + 1 :]:
                 assert np.hypot(*np.subtract(a.center_mm, b.center_mm)) >= a.radius_mm + b.radius_mm - 1e-3
+
+
+def test_max_coverage_shrinks_only_crowded_wells():
+    crowded = {"plaques.top_count": 100, "plaques.dilution_factor": 1, "plaques.negative_plate": 0.0,
+               "plaques.lysis_count": 1000, "plaques.radius_mm": 2.0, "plaques.radius_spread": 0.0,
+               "wells.emptied": 0.0}
+    loose = sample_scene(load_config("high", overrides={**crowded, "plaques.max_coverage": 5.0}), 4)
+    capped = sample_scene(load_config("high", overrides={**crowded, "plaques.max_coverage": 0.5}), 4)
+    well_radius = capped.plate.well_radius_mm
+    assert [p.center_mm for p in loose.plaques] == [p.center_mm for p in capped.plaques]  # same draws, same centres
+    for well in capped.wells:
+        loose_radii = np.array([p.radius_mm for p in loose.plaques if p.well == well.id])
+        radii = np.array([p.radius_mm for p in capped.plaques if p.well == well.id])
+        # 60-140 plaques of 2 mm cover 2-4.5 times an 11 mm well: shrunk by one factor to cover half of it
+        assert (loose_radii**2).sum() > 1.5 * well_radius**2
+        assert (radii**2).sum() == pytest.approx(0.5 * well_radius**2, rel=1e-3)
+        np.testing.assert_allclose(radii / loose_radii, radii[0] / loose_radii[0], rtol=1e-3)
+    sparse = {"plaques.top_count": 5, "plaques.negative_plate": 0.0}
+    assert sample_scene(load_config("high", overrides={**sparse, "plaques.max_coverage": 0.5}), 4).plaques == \
+        sample_scene(load_config("high", overrides={**sparse, "plaques.max_coverage": 5.0}), 4).plaques
 
 
 @pytest.mark.parametrize(

@@ -308,6 +308,7 @@ def sample_scene(config: SceneConfig, seed: int) -> Scene:
     # the look of plaques and of the rim's mottle are drawn last, so that adding them left every earlier draw as it was
     plaque_look = PlaqueLook(**{name: c.plaques.draw(name, rng) for name in PlaqueLook.model_fields})
     stain = stain.model_copy(update={name: c.stain.draw(name, rng) for name in STAIN_DRAWN_LAST})
+    plaques = _shrink_crowded(plaques, c.plaques.draw("max_coverage", rng), plate.well_radius_mm)
     return Scene(
         seed=texture_seed,
         plate=plate,
@@ -389,6 +390,22 @@ def _sample_plaques(
             )
         )
     return out
+
+
+def _shrink_crowded(plaques: list[Plaque], max_coverage: float, well_radius: float) -> list[Plaque]:
+    """Scale the radii of each well's plaques by one factor so that their discs together cover at most
+    ``max_coverage`` of the well's area (centres stay where they are)."""
+    areas: dict[int, float] = {}
+    for plaque in plaques:
+        areas[plaque.well] = areas.get(plaque.well, 0.0) + plaque.radius_mm**2
+    limit = max_coverage * well_radius**2
+    shrunk = []
+    for plaque in plaques:
+        if areas[plaque.well] > limit:
+            radius = max(MIN_PLAQUE_RADIUS_MM, plaque.radius_mm * math.sqrt(limit / areas[plaque.well]))
+            plaque = plaque.model_copy(update={"radius_mm": round(radius, 4)})
+        shrunk.append(plaque)
+    return shrunk
 
 
 def _pipette_scratch(

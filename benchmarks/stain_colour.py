@@ -1,0 +1,73 @@
+"""Colour of the stain in the wells: a preset's renders against the shared real 12-well photos.
+
+For every well, the median hue, saturation and value (HSV) of the pixels within 0.6 of its radius from its centre
+(the stained monolayer, mostly; the median is robust to a few plaques). Real wells are found with the fitted plate
+grid (:func:`platesynth.metrics.fit_plate_grid`), synthetic ones with their true masks, raster renders at the
+photos' size. Prints the 10th, 50th and 90th percentiles per split and for the preset.
+
+Run: ``python benchmarks/stain_colour.py`` (``--preset P``, ``--images N``, ``--set name=value`` overrides).
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+from pathlib import Path
+
+from shared_split import in_split
+
+ROOT = Path(__file__).resolve().parents[1]
+SHARED = Path(os.environ.get("PLATESYNTH_SHARED", ROOT.parent / "shared"))
+CENTRE_SHARE = 0.6
+"""Pixels within this share of the well's radius from its centre are measured."""
+
+
+def main(argv: list[str] | None = None) -> None:
+    """Print the percentiles of the wells' median hue, saturation and value."""
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--preset", default="high")
+    parser.add_argument("--images", type=int, default=12, help="synthetic images")
+    parser.add_argument("--seed", type=int, default=700)
+    parser.add_argument("--set", action="append", default=[], metavar="NAME=VALUE", help="override a parameter")
+    args = parser.parse_args(argv)
+
+    import numpy as np
+    import yaml
+    from skimage.color import rgb2hsv
+
+    from platesynth.io import list_images, read_image
+    from platesynth.metrics import fit_plate_grid, wells_from_mask
+    from platesynth.render.raster import render_raster
+    from platesynth.scene import load_config, sample_scene
+
+    def well_medians(image, discs) -> np.ndarray:
+        hsv = rgb2hsv(image)
+        yy, xx = np.mgrid[: image.shape[0], : image.shape[1]]
+        return np.array([
+            np.median(hsv[(yy - d.cy) ** 2 + (xx - d.cx) ** 2 < (CENTRE_SHARE * d.radius) ** 2], axis=0) for d in discs
+        ])
+
+    def report(label: str, medians: np.ndarray) -> None:
+        hue, sat, val = (np.percentile(medians[:, k], [10, 50, 90]) for k in range(3))
+        print(f"{label:24s} {len(medians):5d}  hue {np.round(hue * 360).astype(int)}  saturation {np.round(sat, 2)}  "
+              f"value {np.round(val, 2)}")
+
+    photos = list_images(SHARED / "data" / "plaque12" / "plates")
+    if not photos:
+        raise SystemExit(f"no real photos under {SHARED}: set PLATESYNTH_SHARED to the shared material")
+    print(f"{'wells of':24s} {'n':>5s}  percentiles 10, 50, 90")
+    for split in ("fit", "check"):
+        medians = [well_medians(image, fit_plate_grid(image))
+                   for image in (read_image(p) for p in photos if in_split(p.name, split))]
+        report(f"real, {split}", np.concatenate(medians))
+    overrides = {name: yaml.safe_load(value) for name, value in (item.split("=", 1) for item in args.set)}
+    config = load_config(args.preset, overrides=overrides)
+    medians = []
+    for index in range(args.images):
+        result = render_raster(sample_scene(config, args.seed + index), (1216, 944))
+        medians.append(well_medians(result.image, wells_from_mask(result.wells)))
+    report(f"{args.preset}" + (" (with --set)" if overrides else ""), np.concatenate(medians))
+
+
+if __name__ == "__main__":
+    main()
