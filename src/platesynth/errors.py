@@ -39,3 +39,8 @@ class RenderError(PlatesynthError):
 
 class ExecutorError(PlatesynthError):
     """Batch work could not run where asked (e.g. a Dask scheduler is unreachable, a worker process died)."""
+
+
+class OutputError(PlatesynthError):
+    """An output may not be written where asked (it would replace an input or another kind of output, another
+    process writes there, or the place cannot be written)."""

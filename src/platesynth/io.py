@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import struct
@@ -160,9 +161,14 @@ def atomic_path(path: str | os.PathLike) -> Iterator[Path]:
     try:
         yield tmp
         os.replace(tmp, path)
+    except OSError as exc:
+        if exc.errno is None or (exc.filename is not None and Path(exc.filename) not in (tmp, path)):
+            raise
+        # a full disk, a read-only folder...: name the file being written, not its temporary name
+        raise OSError(exc.errno, exc.strerror, str(path)) from None
     finally:
-        if tmp.exists():
-            tmp.unlink()
+        with contextlib.suppress(OSError):
+            tmp.unlink(missing_ok=True)  # a failed write leaves no partial file
 
 
 PNG_COMPRESS_LEVEL = 6
@@ -174,7 +180,9 @@ def _png_chunk(kind: bytes, data: bytes) -> bytes:
     return struct.pack(">I", len(data)) + kind + data + struct.pack(">I", zlib.crc32(kind + data))
 
 
-def encode_png(image: np.ndarray, compress_level: int = PNG_COMPRESS_LEVEL) -> bytes:
+def encode_png(
+    image: np.ndarray, compress_level: int = PNG_COMPRESS_LEVEL, text: dict[str, str] | None = None
+) -> bytes:
     """The PNG file of an 8-bit gray, RGB or RGBA image, every row filtered with PNG's "Up" filter.
 
     Pillow chooses a filter per row by trying all five, which took longer than compressing: with the one filter
@@ -185,6 +193,7 @@ def encode_png(image: np.ndarray, compress_level: int = PNG_COMPRESS_LEVEL) -> b
     ----------
     image : (H, W), (H, W, 1), (H, W, 3) or (H, W, 4) uint8.
     compress_level : zlib's level, 0 (none) to 9.
+    text : optional ``tEXt`` chunks, keyword -> Latin-1 text (e.g. what wrote the file).
     """
     if image.dtype != np.uint8 or image.ndim not in (2, 3) or (image.ndim == 3 and image.shape[2] not in (1, 3, 4)):
         raise ValueError(f"expected an 8-bit gray, RGB or RGBA image, got {image.dtype} {image.shape}")
@@ -200,23 +209,35 @@ def encode_png(image: np.ndarray, compress_level: int = PNG_COMPRESS_LEVEL) -> b
         (
             b"\x89PNG\r\n\x1a\n",
             _png_chunk(b"IHDR", header),
+            *(_png_chunk(b"tEXt", f"{key}\0{value}".encode("latin-1")) for key, value in (text or {}).items()),
             _png_chunk(b"IDAT", zlib.compress(filtered.data, compress_level)),
             _png_chunk(b"IEND", b""),
         )
     )
 
 
-def write_png(path: str | os.PathLike, image: np.ndarray, compress_level: int = PNG_COMPRESS_LEVEL) -> None:
+def write_png(
+    path: str | os.PathLike,
+    image: np.ndarray,
+    compress_level: int = PNG_COMPRESS_LEVEL,
+    text: dict[str, str] | None = None,
+) -> None:
     """Write an 8- or 16-bit image as PNG, atomically.
 
     8-bit images are encoded by :func:`encode_png`, others by Pillow. ``compress_level`` is zlib's, 0 (none) to 9;
     every level is lossless: 1 writes a 1024x768 render about four times faster than 6, the file about 10 % larger.
+    ``text`` adds ``tEXt`` chunks (keyword -> text).
     """
     with atomic_path(path) as tmp:
         if image.dtype == np.uint8 and (image.ndim == 2 or (image.ndim == 3 and image.shape[2] in (1, 3, 4))):
-            tmp.write_bytes(encode_png(image, compress_level))
+            tmp.write_bytes(encode_png(image, compress_level, text))
         else:
-            Image.fromarray(image).save(tmp, format="PNG", compress_level=compress_level)
+            from PIL.PngImagePlugin import PngInfo
+
+            info = PngInfo()
+            for key, value in (text or {}).items():
+                info.add_text(key, value)
+            Image.fromarray(image).save(tmp, format="PNG", compress_level=compress_level, pnginfo=info)
 
 
 def write_tiff(path: str | os.PathLike, array: np.ndarray) -> None:
@@ -227,5 +248,10 @@ def write_tiff(path: str | os.PathLike, array: np.ndarray) -> None:
 
 def write_json(path: str | os.PathLike, obj: object) -> None:
     """Write ``obj`` as indented JSON, atomically."""
+    write_text(path, json.dumps(obj, indent=2, sort_keys=False) + "\n")
+
+
+def write_text(path: str | os.PathLike, text: str) -> None:
+    """Write ``text`` as UTF-8, atomically (a temporary file beside ``path``, then a rename)."""
     with atomic_path(path) as tmp:
-        tmp.write_text(json.dumps(obj, indent=2, sort_keys=False) + "\n")
+        tmp.write_text(text, encoding="utf-8")

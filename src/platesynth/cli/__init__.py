@@ -10,9 +10,11 @@ import typer
 
 from platesynth import __version__
 from platesynth.cli import blender, metrics, render, scene, segment
+from platesynth.cli._common import CommandGroup
 
 app = typer.Typer(
     name="platesynth",
+    cls=CommandGroup,
     help="Synthetic multi-well plate assay images, realism and diversity metrics, and segmentation.",
     no_args_is_help=True,
     pretty_exceptions_enable=False,

@@ -11,6 +11,7 @@ from platesynth.cli import scene as scene_cli
 from platesynth.cli._common import console, user_errors
 from platesynth.cli.options import ConfigFile, Overrides, Preset, parse_overrides, parse_size
 from platesynth.errors import ParameterError
+from platesynth.outputs import claim_output
 
 
 @user_errors
@@ -26,6 +27,9 @@ def export(
     ] = None,
     size: Annotated[str, typer.Option("--size", help="Render size WIDTHxHEIGHT set in the file.")] = "1024x768",
     samples: Annotated[int, typer.Option("--samples", min=1, help="Cycles samples per pixel set in the file.")] = 16,
+    overwrite: Annotated[
+        bool, typer.Option("--overwrite", help="Replace a file in --out that is not a .blend scene, or an input.")
+    ] = False,
 ) -> None:
     """Save a concrete scene as a .blend that opens in Blender 5.0: geometry nodes with named inputs, named
     material values, the compositor's post-processing. Render it with Blender or drive it from other tools."""
@@ -34,12 +38,16 @@ def export(
 
     if scene_file is not None and (preset or config or overrides):
         raise ParameterError("--scene gives a concrete scene: leave out --preset, --config and --set")
+    if out.suffix.lower() != ".blend":
+        raise ParameterError(f"{out}: the file name must end in .blend")
+    render_size = parse_size(size)
+    claim_output(out, "blend", inputs=[config, scene_file], overwrite=overwrite)
     if scene_file:
         scene = load_scene(scene_file)
     else:
         scene = sample_scene(load_config(preset, config, parse_overrides(overrides)), seed)
     with console.status("building the scene in Blender"):
-        path = export_blend(scene, out, parse_size(size), samples=samples)
+        path = export_blend(scene, out, render_size, samples=samples)
     typer.echo(str(path))
 
 

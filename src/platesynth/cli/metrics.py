@@ -11,7 +11,7 @@ from typing import Any
 
 import typer
 
-from platesynth.cli._common import console, print_json, print_table, progress_bar, user_errors
+from platesynth.cli._common import console, print_json, print_table, progress_bar, styled, user_errors
 from platesynth.errors import ParameterError
 
 app = typer.Typer(help="Realism and diversity metrics for image pairs and datasets.", no_args_is_help=True)
@@ -40,7 +40,7 @@ def _progress_and_notes() -> Iterator[Callable[[str, int, int], None]]:
         yield progress
     for warning in caught:
         if issubclass(warning.category, MetricSkippedWarning):
-            console.print(f"[yellow]note:[/] {warning.message}", highlight=False, soft_wrap=True)
+            console.print(styled("note:", "yellow", str(warning.message)), highlight=False, soft_wrap=True)
         else:
             warnings.showwarning(warning.message, warning.category, warning.filename, warning.lineno)
 

@@ -16,7 +16,33 @@ _SIZE = re.compile(r"^\s*(\d+)\s*[xX]\s*(\d+)\s*$")
 
 Out = Annotated[Path, typer.Option("--out", "-o", help="Output directory of the dataset.")]
 Seed = Annotated[int, typer.Option("--seed", help="Dataset seed: image i gets a seed derived from (seed, i).")]
-Preset = Annotated[str | None, typer.Option("--preset", help="Scene preset (see `platesynth scene presets`).")]
+
+
+def preset_name(value: str | None) -> str | None:
+    """Check that ``--preset`` names a shipped preset (a file goes through ``--config``); ``None`` passes.
+
+    Raises
+    ------
+    ParameterError
+        For anything but the name of a shipped preset (a path, a file name, an unknown name).
+    """
+    if value is None:
+        return None
+    from platesynth.scene.loading import list_presets
+
+    names = list_presets()
+    if value not in names:
+        hint = ""
+        if any(sep in value for sep in ("/", "\\", ".")) or Path(value).exists():
+            hint = "; presets are names, a configuration file goes through --config"
+        raise ParameterError(f"unknown preset {value!r}: available presets are {', '.join(names)}{hint}")
+    return value
+
+
+Preset = Annotated[
+    str | None,
+    typer.Option("--preset", callback=preset_name, help="Scene preset (see `platesynth scene presets`)."),
+]
 Plate = Annotated[
     int | None, typer.Option("--plate", help="Plate format: 6, 12, 24 or 96 wells (overrides the preset).")
 ]

@@ -15,6 +15,7 @@ from pydantic import ValidationError
 from platesynth.cli._common import console, print_json, print_table, progress_bar, user_errors
 from platesynth.errors import ParameterError
 from platesynth.io import list_images
+from platesynth.outputs import TABLE_COLUMNS, claim_output
 
 ModelDir = Annotated[Path, typer.Option("--model", "-m", help="Model directory (written by `platesynth train`).")]
 Json = Annotated[bool, typer.Option("--json", help="Print the result as JSON on stdout.")]
@@ -52,7 +53,7 @@ def _set_threads(threads: int) -> None:
 
 def _parse_patch(text: str) -> tuple[int, int]:
     match = _PATCH.match(text)
-    if not match:
+    if not match or min(int(match[1]), int(match[2])) < 1:
         raise ParameterError(f"--patch {text!r}: expected HEIGHTxWIDTH in pixels, e.g. 256x256")
     return int(match[1]), int(match[2])
 
@@ -113,13 +114,17 @@ def train_command(
     device: Device = "auto",
     threads: Threads = 0,
     workers: Annotated[int, typer.Option("--workers", help="Data-loading processes.")] = 0,
-    overwrite: Annotated[bool, typer.Option("--overwrite", help="Replace a different training found in --out.")] = False,
+    overwrite: Annotated[
+        bool, typer.Option("--overwrite", help="Replace a different training, or another kind of output, in --out.")
+    ] = False,
     as_json: Json = False,
 ) -> None:
     """Train the two-branch StarDist model (wells, plaques) on one or more datasets."""
+    from platesynth.segment.model import select_device
     from platesynth.segment.train import TrainConfig, train
 
     _set_threads(threads)
+    select_device(device)
     try:
         config = TrainConfig(
             data=[str(d) for d in data],
@@ -139,6 +144,8 @@ def train_command(
         )
     except ValidationError as exc:
         raise ParameterError(_validation_message(exc)) from None
+    network_config = _model_config(model_config)
+    claim = claim_output(out, "model", inputs=[*data, model_config], overwrite=overwrite)
     bar = progress_bar(transient=False)
     task_id = bar.add_task("epoch", total=config.epochs * config.steps_per_epoch, visible=False)
 
@@ -152,8 +159,10 @@ def train_command(
             message = f"epoch {event['epoch']}: train loss {event['train_loss']:.4f}, validation loss {val_loss}"
             bar.console.print(message, highlight=False)
 
-    with bar:
-        summary = train(config, out, _model_config(model_config), overwrite=overwrite, device=device, progress=progress)
+    with claim, bar:
+        summary = train(
+            config, out, network_config, overwrite=overwrite, device=device, progress=progress, before_writing=claim.take
+        )
     result = {
         "model_dir": str(summary.model_dir),
         "epochs": summary.epochs_done,
@@ -217,20 +226,26 @@ def predict_command(
     plaque_nms: PlaqueNms = None,
     device: Device = "auto",
     threads: Threads = 0,
+    overwrite: Annotated[
+        bool, typer.Option("--overwrite", help="Write into --out even where it holds another kind of output or the inputs.")
+    ] = False,
 ) -> None:
     """Predict well and plaque instance masks and plaques per well (counts.csv) for plate images."""
     from platesynth.segment.predict import predict_files
 
     network, thresholds = _load_network(model, device, threads, (well_prob, well_nms), (plaque_prob, plaque_nms))
     paths = _image_paths(images)
+    claim = claim_output(out, "prediction", inputs=[*paths, model], overwrite=overwrite)
 
     def run(progress: Any) -> Path:
         done = iter(range(1, len(paths) + 1))
         return predict_files(
-            network, paths, out, thresholds, plate, from_below, progress=lambda _path: progress(next(done), len(paths))
+            network, paths, out, thresholds, plate, from_below,
+            progress=lambda _path: progress(next(done), len(paths)), before_writing=claim.take,
         )
 
-    counts = _with_progress("predicting", run)
+    with claim:
+        counts = _with_progress("predicting", run)
     console.print(f"{len(paths)} image(s) -> {out} (plaques per well: {counts})", highlight=False)
 
 
@@ -293,12 +308,17 @@ def evaluate_counts_command(
     plaque_nms: PlaqueNms = None,
     device: Device = "auto",
     threads: Threads = 0,
+    overwrite: Annotated[
+        bool, typer.Option("--overwrite", help="Let --table replace a file that is not such a table, or an input.")
+    ] = False,
     as_json: Json = False,
 ) -> None:
     """Predicted plaques per well against a person's counts: MAE, RMSE, Pearson r, and the training-mean baseline."""
     from platesynth.segment.counts import evaluate_counts, write_count_table
     from platesynth.segment.predict import predict_image
 
+    if table is not None:
+        claim_output(table, "table", inputs=[counts, images, model], overwrite=overwrite)
     network, thresholds = _load_network(model, device, threads, (well_prob, well_nms), (plaque_prob, plaque_nms))
     plate_format = plate or network.config.plate_format
     predictor = functools.partial(predict_image, network, thresholds=thresholds, plate_format=plate_format, from_below=from_below)
@@ -308,7 +328,7 @@ def evaluate_counts_command(
         "counting", lambda progress: evaluate_counts(predictor, images, counts, plate_format, baseline, progress)
     )
     if table is not None:
-        columns = ("image", "row", "col", "well", "count", "predicted", "detected", "predicted_countable")
+        columns = TABLE_COLUMNS
         write_count_table(table, [tuple("" if w[c] is None else w[c] for c in columns) for w in report["wells"]], columns)
     if as_json:
         print_json(report)

@@ -18,8 +18,16 @@ import numpy as np
 from platesynth import __version__
 from platesynth.data.executor import Executor, SerialExecutor
 from platesynth.data.layout import DatasetItem, Manifest, item_name, item_paths, read_params
-from platesynth.data.writer import finished_items, prepare_directory, write_counts_csv, write_item, write_manifest
+from platesynth.data.writer import (
+    check_directory,
+    finished_items,
+    prepare_directory,
+    write_counts_csv,
+    write_item,
+    write_manifest,
+)
 from platesynth.errors import DatasetError, ParameterError, RenderError
+from platesynth.outputs import output_lock
 from platesynth.render import BACKENDS, render, render_options, renderer_settings
 from platesynth.render.result import RenderResult, check_size
 from platesynth.scene import Scene, SceneConfig, load_config, sample_scene
@@ -260,9 +268,24 @@ def render_dataset(
     DatasetError
         If ``directory`` cannot take this dataset (see :func:`platesynth.data.writer.check_directory`) or a
         file cannot be written.
+    OutputError
+        If another process is writing into ``directory`` (see :func:`platesynth.outputs.output_lock`).
     """
-    started = time.perf_counter()
     directory = Path(directory).resolve()
+    check_directory(directory, manifest, overwrite)  # refused before anything is created
+    directory.mkdir(parents=True, exist_ok=True)
+    with output_lock(directory):  # a second run into this folder is refused while this one runs
+        return _render_locked(directory, manifest, executor, overwrite, progress)
+
+
+def _render_locked(
+    directory: Path,
+    manifest: Manifest,
+    executor: Executor | None,
+    overwrite: bool,
+    progress: Callable[[int, int], None] | None,
+) -> BatchSummary:
+    started = time.perf_counter()
     manifest, todo = prepare_directory(directory, manifest, overwrite)
     summary = BatchSummary(directory=directory, count=manifest.count, skipped=manifest.count - len(todo))
     if progress is not None:

@@ -15,10 +15,14 @@ from __future__ import annotations
 
 import atexit
 import contextlib
+import ctypes
 import functools
 import multiprocessing
 import os
+import signal
 import sys
+import threading
+import time
 from collections.abc import Callable, Iterable, Iterator
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from concurrent.futures.process import BrokenProcessPool
@@ -75,8 +79,40 @@ def limit_threads(threads: int) -> None:
             os.environ.setdefault(name, str(threads))
 
 
-def _start_worker(threads: int, setup: Callable[[], None] | None) -> None:
-    """Initializer of a :class:`ProcessExecutor` worker: its share of the CPUs, a quick exit, the caller's setup."""
+PR_SET_PDEATHSIG = 1  # linux/prctl.h
+
+
+def end_with_parent(parent: int) -> None:
+    """Make this process end when its parent process ``parent`` ends, however that ends (even by SIGKILL).
+
+    On Linux the kernel sends SIGTERM when the parent dies (``prctl(PR_SET_PDEATHSIG)``); elsewhere a daemon thread
+    checks the parent every second. A parent already gone ends this process at once.
+    """
+    armed = False
+    if sys.platform.startswith("linux"):
+        try:
+            libc = ctypes.CDLL(None, use_errno=True)
+            armed = libc.prctl(PR_SET_PDEATHSIG, signal.SIGTERM, 0, 0, 0) == 0
+        except (OSError, AttributeError):
+            armed = False
+    if os.getppid() != parent:  # the parent ended before the signal was armed
+        os._exit(1)
+    if not armed:
+        threading.Thread(target=_watch_parent, args=(parent,), name="platesynth-parent-watch", daemon=True).start()
+
+
+def _watch_parent(parent: int) -> None:
+    while True:
+        time.sleep(1.0)
+        if os.getppid() != parent:
+            os._exit(1)
+
+
+def _start_worker(threads: int, setup: Callable[[], None] | None, parent: int | None = None) -> None:
+    """Initializer of a :class:`ProcessExecutor` worker: it ends with its parent, gets its share of the CPUs and a
+    quick exit, then runs the caller's setup."""
+    if parent is not None:
+        end_with_parent(parent)
     limit_threads(threads)
     atexit.register(_exit_now)  # registered first, so it runs after the other exit handlers (e.g. the setup's)
     if setup is not None:
@@ -98,7 +134,8 @@ def _exit_now() -> None:
 class ProcessExecutor:
     """Runs tasks in ``workers`` local processes started with ``spawn`` (safe with threads, same on every OS).
 
-    At most ``2 * workers`` tasks are queued at a time, so an interrupt stops the batch quickly. The CPUs are
+    At most ``2 * workers`` tasks are queued at a time, so an interrupt stops the batch quickly. Workers end with
+    this process, however it ends (:func:`end_with_parent`). The CPUs are
     shared among the workers: each one's numba, OpenMP and BLAS thread pools get ``threads_per_worker`` threads
     (default: the CPUs this process may use divided by ``workers``, at least 1), unless the environment sets
     them (:data:`THREAD_VARIABLES`). Without this every worker's pool had a thread per CPU, and the threads of
@@ -121,7 +158,7 @@ class ProcessExecutor:
         self._pool = ProcessPoolExecutor(
             max_workers=self.workers,
             mp_context=multiprocessing.get_context("spawn"),
-            initializer=functools.partial(_start_worker, self.threads_per_worker, self._setup),
+            initializer=functools.partial(_start_worker, self.threads_per_worker, self._setup, os.getpid()),
         )
         return self
 

@@ -18,6 +18,7 @@ run removes.
 from __future__ import annotations
 
 import csv
+import io
 import json
 import os
 import re
@@ -274,23 +275,40 @@ class WellCount(NamedTuple):
 def read_counts_csv(path: str | os.PathLike) -> list[WellCount]:
     """Read a per-well plaque count table (``image,row,col,well,count``).
 
-    Blank counts (wells judged uncountable) become ``None``. Extra columns are ignored.
+    Blank counts (wells judged uncountable) become ``None``. Extra columns are ignored. The file is UTF-8 (a byte
+    order mark is allowed).
 
     Raises
     ------
     DatasetError
-        If the file is missing, lacks a column, or a row holds a value that is not a non-negative integer.
+        If the file is missing or not UTF-8 text, lacks a column, has a row with fewer fields than its header (a
+        missing count is not a blank one: write ``a.png,0,0,A4,``), or a row holds a value that is not a
+        non-negative integer.
     """
     path = Path(path)
     if not path.is_file():
         raise DatasetError(f"{path}: no such file")
+    try:
+        text = path.read_text(encoding="utf-8-sig")
+    except UnicodeDecodeError as exc:
+        raise DatasetError(f"{path}: not UTF-8 text (byte 0x{exc.object[exc.start]:02x} at position {exc.start}); "
+                           "save the table as UTF-8 CSV") from None
+    except OSError as exc:
+        raise DatasetError(f"{path}: cannot read ({exc.strerror or exc})") from None
     rows = []
-    with path.open(newline="") as handle:
-        reader = csv.DictReader(handle)
+    reader = csv.DictReader(io.StringIO(text, newline=""))
+    try:
         missing = [c for c in COUNTS_COLUMNS if c not in (reader.fieldnames or [])]
         if missing:
             raise DatasetError(f"{path}: missing column(s) {', '.join(missing)} (expected {','.join(COUNTS_COLUMNS)})")
-        for line, record in enumerate(reader, start=2):
+        for record in reader:
+            line = reader.line_num
+            if None in record.values():
+                given = sum(value is not None for value in record.values())
+                raise DatasetError(
+                    f"{path}, line {line}: {given} field(s), the header has {len(reader.fieldnames or ())}; "
+                    "leave a count blank, not out (e.g. a.png,0,0,A4,)"
+                )
             try:
                 row, col = int(record["row"]), int(record["col"])
                 count = None if not (record["count"] or "").strip() else int(record["count"])
@@ -301,6 +319,8 @@ def read_counts_csv(path: str | os.PathLike) -> list[WellCount]:
             if not record["image"]:
                 raise DatasetError(f"{path}, line {line}: empty image name")
             rows.append(WellCount(record["image"], row, col, record["well"] or "", count))
+    except csv.Error as exc:
+        raise DatasetError(f"{path}, line {reader.line_num}: not a CSV table ({exc})") from None
     return rows
 
 

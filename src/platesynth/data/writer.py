@@ -31,7 +31,8 @@ from platesynth.data.layout import (
     read_params,
 )
 from platesynth.errors import DatasetError, ShapeMismatchError
-from platesynth.io import atomic_path, write_json, write_png, write_tiff
+from platesynth.io import write_json, write_png, write_text, write_tiff
+from platesynth.outputs import LOCK_NAME, MARKER_NAME
 from platesynth.render.result import RenderResult
 
 _TOP_LEVEL_FILES = (MANIFEST_NAME, COUNTS_NAME, COCO_NAME)
@@ -87,12 +88,12 @@ def write_item(item: DatasetItem, result: RenderResult, params: dict[str, Any]) 
 
 def write_compact_json(path: str | os.PathLike, obj: Any) -> None:
     """Write ``obj`` as JSON without whitespace, atomically (params and COCO files get large)."""
-    with atomic_path(path) as tmp:
-        tmp.write_text(json.dumps(obj, separators=(",", ":")) + "\n")
+    write_text(path, json.dumps(obj, separators=(",", ":")) + "\n")
 
 
 def _is_non_empty_dir(path: Path) -> bool:
-    return path.is_dir() and any(path.iterdir())
+    """Whether ``path`` is a folder holding anything but the output marker and lock (:mod:`platesynth.outputs`)."""
+    return path.is_dir() and any(p.name not in (MARKER_NAME, LOCK_NAME) for p in path.iterdir())
 
 
 def check_directory(directory: str | os.PathLike, manifest: Manifest, overwrite: bool = False) -> Manifest | None:
@@ -238,7 +239,6 @@ def write_counts_csv(directory: str | os.PathLike, items: list[DatasetItem]) -> 
             count = "" if well["count"] is None else well["count"]
             writer.writerow((item.image_path.name, well["row"], well["col"], well["label"], count))
     path = Path(directory) / COUNTS_NAME
-    with atomic_path(path) as tmp:
-        tmp.write_text(buffer.getvalue())
+    write_text(path, buffer.getvalue())
     return path
 

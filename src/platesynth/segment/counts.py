@@ -22,7 +22,7 @@ from skimage.measure import regionprops
 
 from platesynth.data.layout import WellCount, read_counts_csv
 from platesynth.errors import DatasetError, ParameterError
-from platesynth.io import atomic_path, read_image
+from platesynth.io import read_image, write_text
 from platesynth.render.result import RenderResult, WellInfo
 from platesynth.scene import plate_geometry
 from platesynth.segment.countability import CountabilityMetrics
@@ -144,8 +144,7 @@ def write_count_table(
     writer.writerow(columns)
     writer.writerows(rows)
     path = Path(path)
-    with atomic_path(path) as tmp:
-        tmp.write_text(buffer.getvalue())
+    write_text(path, buffer.getvalue())
     return path
 
 
@@ -192,6 +191,14 @@ class CountMetrics:
         }
 
 
+def _inside_folder(name: str) -> bool:
+    """Whether an image name from a table stays inside the folder it is relative to (no absolute path, no '..')."""
+    if not name or name.startswith(("/", "\\")) or os.path.isabs(name) or (len(name) > 1 and name[1] == ":"):
+        return False
+    parts = name.replace("\\", "/").split("/")
+    return ".." not in parts and "\0" not in name
+
+
 def evaluate_counts(
     predict: Callable[[np.ndarray], RenderResult],
     images_dir: str | os.PathLike,
@@ -225,12 +232,27 @@ def evaluate_counts(
     Raises
     ------
     DatasetError
-        If the table is unreadable, names a well outside the plate or twice, or an image missing from ``images_dir``.
+        If the table is unreadable, lists no well or no count (every count blank: nothing to score), names a well
+        outside the plate or twice, an image outside ``images_dir`` (an absolute name, or one leading out with
+        ``..``) or an image missing from it.
     """
     counts_csv, images_dir = Path(counts_csv), Path(images_dir)
     n_rows, n_cols = plate_shape(plate_format)
+    records = read_counts_csv(counts_csv)
+    if not records:
+        raise DatasetError(f"{counts_csv}: lists no well (only a header?): nothing to score")
+    if all(record.count is None for record in records):
+        raise DatasetError(
+            f"{counts_csv}: all {len(records)} counts are blank (uncountable wells): nothing to score; "
+            "fill in the counts of the wells a person counted"
+        )
     by_image: dict[str, dict[tuple[int, int], WellCount]] = {}
-    for line, record in enumerate(read_counts_csv(counts_csv), start=2):
+    for line, record in enumerate(records, start=2):
+        if not _inside_folder(record.image):
+            raise DatasetError(
+                f"{counts_csv}, line {line}: image {record.image!r} lies outside --images; name images relative to "
+                "that folder, without '..'"
+            )
         if record.row >= n_rows or record.col >= n_cols:
             raise DatasetError(
                 f"{counts_csv}, line {line}: unknown well {record.well or '?'} at row {record.row}, col {record.col}: "

@@ -166,13 +166,16 @@ def predict_files(
     plate_format: int | None = None,
     from_below: bool = True,
     progress: Callable[[Path], None] | None = None,
+    before_writing: Callable[[], None] | None = None,
 ) -> Path:
     """Predict every image and write the results in the dataset layout, plus ``counts.csv``.
 
     Writes ``out_dir/images/<stem>.png`` (the input as RGB), ``masks/wells/<stem>.tif``, ``masks/plaques/<stem>.tif``,
     ``params/<stem>.json`` (source file, model thresholds and per-well records) and ``counts.csv`` (``image`` is the
     input's file name, then grid row, column, well label, plaques; blank for a well judged uncountable). Every
-    input is read once before anything is written, so an unreadable file leaves no output.
+    input is read once before anything is written, so an unreadable file leaves no output; ``before_writing`` is
+    called then, right before the first write (the command line claims ``out_dir`` there, see
+    :func:`platesynth.outputs.claim_output`).
 
     Returns
     -------
@@ -184,6 +187,8 @@ def predict_files(
     _unique_stems(paths)
     for path in paths:
         read_image(path)
+    if before_writing is not None:
+        before_writing()
     out_dir = Path(out_dir)
     rows = []
     for path in paths:

@@ -1,0 +1,385 @@
+"""Where commands write: output kinds, claiming an output before writing it, one writer per folder at a time.
+
+Every command that writes passes its output through :func:`claim_output` once all of its options are validated:
+
+- A folder output (a rendered dataset, a demo folder, a prediction folder, a model directory) holds a small marker,
+  ``.platesynth-output``, naming its kind; folders written before the marker existed are recognised by their files
+  (:func:`folder_kind`). A folder of another kind, or a non-empty folder platesynth did not write, is refused unless
+  ``overwrite``; with ``overwrite`` the files the other kind writes are removed first (and nothing else).
+- A file output (a contact sheet, a per-well table, a ``.blend`` scene) may replace an earlier file of its own kind
+  (recognised by its content); another existing file, or one inside a platesynth output folder, is refused unless
+  ``overwrite``.
+- An output that would replace an input of the same command (an input file is the output, or lies inside the output
+  folder) is refused unless ``overwrite``.
+- The checks change nothing. :meth:`Claim.take` then creates the folder, takes its lock (:func:`output_lock`: a
+  second process writing into the same folder is refused while the first runs) and writes the marker; the command
+  calls it right before its first write, and the lock is released when the claim's ``with`` block ends.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import errno
+import json
+import os
+from collections.abc import Callable, Iterable, Iterator
+from contextlib import ExitStack, contextmanager
+from pathlib import Path
+from typing import Any
+
+from platesynth.errors import OutputError
+
+try:  # POSIX; elsewhere folders are not locked
+    import fcntl
+except ImportError:  # pragma: no cover
+    fcntl = None  # type: ignore[assignment]
+
+MARKER_NAME = ".platesynth-output"
+LOCK_NAME = ".platesynth.lock"
+
+FOLDER_KINDS = {
+    "dataset": "a rendered dataset",
+    "demo": "a demo folder",
+    "prediction": "a prediction folder",
+    "model": "a model directory",
+}
+FILE_KINDS = {
+    "preview": "a contact sheet",
+    "table": "a per-well count table",
+    "blend": "a .blend scene",
+}
+_OTHER = "other"
+_DESCRIPTIONS = {**FOLDER_KINDS, **FILE_KINDS, _OTHER: "files platesynth did not write"}
+
+PREVIEW_TEXT_KEY = "platesynth"
+"""The PNG text chunk (``platesynth: preview``) that marks a contact sheet as written by ``platesynth preview``."""
+TABLE_COLUMNS = ("image", "row", "col", "well", "count", "predicted", "detected", "predicted_countable")
+"""The header of the per-well table ``platesynth evaluate counts --table`` writes."""
+
+
+def describe_kind(kind: str) -> str:
+    """``"dataset"`` -> ``"a rendered dataset"``."""
+    return _DESCRIPTIONS.get(kind, kind)
+
+
+# --- recognising what is there ----------------------------------------------------------------------------------
+
+
+def _read_marker(directory: Path) -> str | None:
+    try:
+        kind = json.loads((directory / MARKER_NAME).read_text(encoding="utf-8")).get("kind")
+    except (OSError, ValueError, AttributeError):
+        return None
+    return kind if kind in FOLDER_KINDS else None
+
+
+def _is_prediction(directory: Path) -> bool:
+    params = directory / "params"
+    if not params.is_dir():
+        return False
+    for path in sorted(params.glob("*.json"))[:1]:
+        try:
+            data = json.loads(path.read_text(encoding="utf-8"))
+        except (OSError, ValueError):
+            return False
+        return isinstance(data, dict) and "source" in data and "thresholds" in data
+    return False
+
+
+def folder_kind(directory: str | os.PathLike) -> str | None:
+    """The kind of output a folder holds: a key of :data:`FOLDER_KINDS`, ``"other"`` (a non-empty folder platesynth
+    did not write, or a file), or ``None`` (missing or empty).
+
+    The marker decides; without one (folders written before it existed, or by the library functions) the files do:
+    ``manifest.json`` a dataset (a demo folder with ``preview.png``), ``train.json``, ``checkpoint.pt`` or
+    ``weights.pt`` with ``config.json`` a model, params naming their ``source`` image a prediction.
+    """
+    directory = Path(directory)
+    if not directory.exists():
+        return None
+    if not directory.is_dir():
+        return _OTHER
+    if (kind := _read_marker(directory)) is not None:
+        return kind
+    names = {p.name for p in directory.iterdir() if p.name != LOCK_NAME}
+    if not names:
+        return None
+    if "manifest.json" in names:
+        return "demo" if "preview.png" in names else "dataset"
+    if {"train.json", "checkpoint.pt"} & names or {"weights.pt", "config.json"} <= names:
+        return "model"
+    if _is_prediction(directory):
+        return "prediction"
+    return _OTHER
+
+
+def enclosing_output(path: str | os.PathLike) -> tuple[Path, str] | None:
+    """The nearest platesynth output folder (and its kind) that ``path`` lies inside, if any."""
+    for parent in Path(path).absolute().parents:
+        kind = folder_kind(parent) if parent.is_dir() else None
+        if kind in FOLDER_KINDS:
+            return parent, kind
+    return None
+
+
+def file_kind(path: str | os.PathLike) -> str | None:
+    """What an existing file is: a key of :data:`FILE_KINDS` when platesynth wrote it, else ``"other"``; ``None``
+    if there is no file."""
+    path = Path(path)
+    if not path.exists():
+        return None
+    if not path.is_file():
+        return _OTHER
+    try:
+        with path.open("rb") as handle:
+            head = handle.read(8)
+        if head.startswith(b"\x89PNG"):
+            from PIL import Image
+
+            with Image.open(path) as image:
+                if getattr(image, "text", {}).get(PREVIEW_TEXT_KEY) == "preview":
+                    return "preview"
+        elif path.suffix.lower() == ".blend":  # plain, zstd- or gzip-compressed
+            return "blend" if head[:7] == b"BLENDER" or head[:4] == b"\x28\xb5\x2f\xfd" or head[:2] == b"\x1f\x8b" else _OTHER
+        elif path.suffix.lower() == ".csv":
+            with path.open(encoding="utf-8", newline="") as handle:
+                header = handle.readline().strip().split(",")
+            if tuple(header) == TABLE_COLUMNS:
+                return "table"
+    except (OSError, ValueError, UnicodeError):
+        return _OTHER
+    return _OTHER
+
+
+# --- claiming -----------------------------------------------------------------------------------------------------
+
+
+def _inside(path: Path, folder: Path) -> bool:
+    return path == folder or folder in path.parents
+
+
+def _resolved(path: str | os.PathLike) -> Path:
+    return Path(path).expanduser().resolve()
+
+
+class Claim:
+    """An output checked by :func:`claim_output`; :meth:`take` it right before the first write.
+
+    Use as a context manager: the folder's lock is held from :meth:`take` until the block ends.
+    """
+
+    def __init__(self, path: Path, kind: str, existing: str | None, overwrite: bool) -> None:
+        self.path = path
+        self.kind = kind
+        self.existing = existing
+        self.overwrite = overwrite
+        self.taken = False
+        self._stack = ExitStack()
+
+    def __enter__(self) -> Claim:
+        return self
+
+    def __exit__(self, *exc_info: object) -> None:
+        self.release()
+
+    def release(self) -> None:
+        """Release the folder's lock (if taken)."""
+        self._stack.close()
+
+    def take(self) -> None:
+        """Create the output folder, lock it, remove another kind's files (``overwrite``), write the marker.
+
+        Nothing for a file output (the atomic writers create its folder). Taking twice does nothing.
+
+        Raises
+        ------
+        OutputError
+            If another process writes into the folder, or the folder cannot be written.
+        """
+        if self.taken or self.kind not in FOLDER_KINDS:
+            self.taken = True
+            return
+        try:
+            self.path.mkdir(parents=True, exist_ok=True)
+            self._stack.enter_context(output_lock(self.path))
+            if self.overwrite and self.existing in FOLDER_KINDS and self.existing != self.kind:
+                remove_output_files(self.path, self.existing)
+            if _read_marker(self.path) != self.kind:
+                from platesynth import __version__
+                from platesynth.io import write_json
+
+                write_json(self.path / MARKER_NAME, {"kind": self.kind, "platesynth_version": __version__})
+        except OSError as exc:
+            self.release()
+            where = exc.filename if exc.filename and Path(exc.filename) != self.path else self.path
+            raise OutputError(f"{where}: cannot write the output here ({exc.strerror or exc})") from None
+        self.taken = True
+
+
+def claim_output(
+    path: str | os.PathLike,
+    kind: str,
+    *,
+    inputs: Iterable[str | os.PathLike | None] = (),
+    overwrite: bool = False,
+    check: Callable[[], Any] | None = None,
+) -> Claim:
+    """Check that a command may write its output ``path`` of ``kind``, changing nothing (see the module docstring).
+
+    Parameters
+    ----------
+    path : the output folder or file.
+    kind : a key of :data:`FOLDER_KINDS` or :data:`FILE_KINDS`.
+    inputs : the files and folders the command reads (``None`` entries are skipped).
+    overwrite : replace an output of another kind, or an input, instead of refusing.
+    check : the command's own check of an existing output of its kind (e.g. whether a dataset there is the same
+        one, to resume), run last.
+
+    Returns
+    -------
+    Claim
+        Call :meth:`Claim.take` before the first write; use it as a context manager to release the lock.
+
+    Raises
+    ------
+    OutputError
+        With a one-line message, where the output may not be written.
+    """
+    if kind not in FOLDER_KINDS and kind not in FILE_KINDS:
+        raise ValueError(f"unknown output kind {kind!r}")
+    path = Path(path)
+    target = _resolved(path)
+    folder = kind in FOLDER_KINDS
+    if folder and path.exists() and not path.is_dir():
+        raise OutputError(f"{path}: exists and is not a directory; give a folder for {describe_kind(kind)}")
+    if not folder and path.is_dir():
+        raise OutputError(f"{path}: is a directory; give a file name for {describe_kind(kind)}")
+    if not overwrite:
+        for given in inputs:
+            if given is None:
+                continue
+            source = _resolved(given)
+            if _inside(source, target) if folder else source == target:
+                raise OutputError(
+                    f"{path}: writing {describe_kind(kind)} here would replace an input of this command ({given}); "
+                    "choose another output or pass --overwrite"
+                )
+    existing = folder_kind(path) if folder else file_kind(path)
+    if not overwrite and existing is not None and existing != kind:
+        if not folder:
+            problem = f"exists and is not {describe_kind(kind)} written by platesynth"
+        elif existing == _OTHER:
+            problem = f"is not empty and holds no {describe_kind(kind).removeprefix('a ')}"
+        else:
+            problem = f"holds {describe_kind(existing)}, not {describe_kind(kind)}"
+        raise OutputError(f"{path}: {problem}; choose another output or pass --overwrite to replace it")
+    if not folder and not overwrite and existing is not None and (enclosing := enclosing_output(path)) is not None:
+        raise OutputError(
+            f"{path}: is part of {describe_kind(enclosing[1])} ({enclosing[0]}); choose another output or pass --overwrite"
+        )
+    if check is not None:
+        check()
+    return Claim(path, kind, existing, overwrite)
+
+
+# --- removing another kind's files ---------------------------------------------------------------------------------
+
+_MODEL_FILES = ("weights.pt", "config.json", "train.json", "checkpoint.pt", "history.json")
+
+
+def remove_output_files(directory: str | os.PathLike, kind: str) -> None:
+    """Delete the files an output of ``kind`` consists of from ``directory``, and nothing else."""
+    directory = Path(directory)
+    if kind in ("dataset", "demo"):
+        from platesynth.data.writer import remove_dataset_files
+
+        remove_dataset_files(directory)
+        if kind == "demo":
+            (directory / "preview.png").unlink(missing_ok=True)
+    elif kind == "prediction":
+        from platesynth.data.layout import ITEM_DIRS
+        from platesynth.data.writer import remove_temporary_files
+
+        remove_temporary_files(directory)
+        (directory / "counts.csv").unlink(missing_ok=True)
+        for name, suffix in zip(ITEM_DIRS, (".png", ".tif", ".tif", ".json")):
+            folder = directory / name
+            if folder.is_dir():
+                for path in folder.iterdir():
+                    if path.is_file() and path.suffix == suffix:
+                        path.unlink()
+        for name in (*ITEM_DIRS, "masks"):
+            with contextlib.suppress(OSError):
+                (directory / name).rmdir()  # only where empty
+    elif kind == "model":
+        for name in _MODEL_FILES:
+            (directory / name).unlink(missing_ok=True)
+    (directory / MARKER_NAME).unlink(missing_ok=True)
+
+
+# --- one writer per folder ------------------------------------------------------------------------------------------
+
+_held: dict[Path, list[int]] = {}  # locked folder -> [file descriptor, depth]
+
+
+@contextmanager
+def output_lock(directory: str | os.PathLike) -> Iterator[None]:
+    """Hold an exclusive lock on ``directory`` (an existing folder) while the block runs.
+
+    The lock is ``fcntl.flock`` on ``.platesynth.lock`` in the folder: the kernel releases it when the holder ends,
+    however it ends, so a killed run never blocks the next one. Re-entrant within a process. The lock file is
+    removed when the outermost block ends. On file systems without ``flock`` the folder is not locked.
+
+    Raises
+    ------
+    OutputError
+        If another process holds the lock.
+    """
+    key = Path(directory).resolve()
+    if key in _held:
+        _held[key][1] += 1
+        try:
+            yield
+        finally:
+            _held[key][1] -= 1
+        return
+    lock_path = key / LOCK_NAME
+    fd = _acquire(lock_path, directory)
+    _held[key] = [fd, 1]
+    try:
+        yield
+    finally:
+        del _held[key]
+        with contextlib.suppress(OSError):
+            lock_path.unlink()  # while still holding it: a process waiting on this file sees it gone and retries
+        os.close(fd)
+
+
+def _acquire(lock_path: Path, directory: str | os.PathLike) -> int:
+    while True:
+        fd = os.open(lock_path, os.O_RDWR | os.O_CREAT, 0o644)
+        if fcntl is None:
+            return fd
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            holder = os.read(fd, 32).decode("ascii", "replace").strip()
+            os.close(fd)
+            pid = f" (pid {holder})" if holder.isdigit() else ""
+            raise OutputError(
+                f"{directory}: another platesynth process{pid} is writing here; wait until it ends or choose another output"
+            ) from None
+        except OSError as exc:
+            if exc.errno in (errno.ENOLCK, errno.EOPNOTSUPP, errno.ENOSYS):
+                return fd  # no locks on this file system (some network file systems)
+            os.close(fd)
+            raise
+        try:
+            same = os.path.samestat(os.fstat(fd), os.stat(lock_path))
+        except FileNotFoundError:
+            same = False
+        if same:
+            os.ftruncate(fd, 0)
+            os.write(fd, f"{os.getpid()}\n".encode())
+            return fd
+        os.close(fd)  # the previous holder removed the file as it ended: lock the new one
