@@ -174,10 +174,7 @@ def memory_limit() -> MemoryLimit:
         fraction, source = value, f"{MEMORY_ENV}={text} of the {{available}} available now"
     else:
         fraction = DEFAULT_FRACTION
-        source = (
-            f"the default, {DEFAULT_FRACTION:.0%} of the {{available}} available now; "
-            f"set {MEMORY_ENV} (e.g. {MEMORY_ENV}=32G) to change it"
-        )
+        source = f"{DEFAULT_FRACTION:.0%} of the {{available}} available now; set {MEMORY_ENV}, e.g. to 32G, to change it"
     available = available_memory()
     if available is None:
         return MemoryLimit(None, "the available memory is unknown")
@@ -322,9 +319,22 @@ def render_bytes(width: int, height: int, backend: str = "raster") -> int:
     return int(width) * int(height) * per_pixel + _BASE.get(backend, _BASE["raster"])
 
 
-def check_render(size: Sequence[int], backend: str = "raster", *, workers: int = 1, kept_images: int = 0) -> None:
-    """Refuse a render request above the memory limit: ``workers`` images at a time, and ``kept_images`` images
-    kept in memory afterwards (a contact sheet's tiles and the sheet).
+_ITEM_BYTES = 2000
+"""Bookkeeping of one item of a dataset render (its paths, its task, its record)."""
+
+
+def check_render(
+    size: Sequence[int],
+    backend: str = "raster",
+    *,
+    workers: int = 1,
+    count: int = 0,
+    kept_images: int = 0,
+    metrics: bool = False,
+) -> None:
+    """Refuse a render request above the memory limit: ``workers`` images at a time, the bookkeeping of ``count``
+    items, ``kept_images`` images kept in memory (a contact sheet's tiles and the sheet), and with ``metrics`` the
+    dataset metrics of the ``count`` images afterwards (``platesynth demo``).
 
     Raises
     ------
@@ -332,12 +342,19 @@ def check_render(size: Sequence[int], backend: str = "raster", *, workers: int =
     """
     width, height = int(size[0]), int(size[1])
     workers = max(int(workers), 1)
-    need = workers * render_bytes(width, height, backend) + 6 * width * height * max(int(kept_images), 0)
-    request = f"render at {width}x{height}"
+    need = (
+        workers * render_bytes(width, height, backend)
+        + _ITEM_BYTES * max(int(count), 0)
+        + 6 * width * height * max(int(kept_images), 0)
+    )
+    request = f"render of {count:,} images at {width}x{height}" if count > 1 else f"render at {width}x{height}"
     if workers > 1:
         request += f" with {workers} workers"
     if kept_images:
-        request += f" keeping {kept_images} images"
+        request += " for a contact sheet"
+    if metrics:
+        need = max(need, entropy_bytes(height, width, count))
+        request += " and their dataset metrics"
     require_memory(need, request)
 
 

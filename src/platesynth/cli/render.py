@@ -30,6 +30,7 @@ from platesynth.data.layout import Manifest, list_items, load_item
 from platesynth.data.writer import check_directory
 from platesynth.errors import ParameterError
 from platesynth.io import write_png
+from platesynth.limits import check_render
 
 
 class _RateColumn(ProgressColumn):
@@ -111,6 +112,7 @@ def render(
         device=device,
         coco=coco,
     )
+    check_render(manifest.size, manifest.backend, workers=1 if scheduler else workers, count=manifest.count)
     check_directory(out, manifest, overwrite)
     kind = "dask" if scheduler is not None else executor
     with make_executor(kind, workers=workers, scheduler=scheduler, timeout=connect_timeout) as pool:
@@ -159,6 +161,7 @@ def preview(
         engine=engine,
         device=device,
     )
+    check_render(manifest.size, manifest.backend, count=count, kept_images=count)
     tiles = []
     with progress_bar() as bar:
         for index in bar.track(range(count), description="rendering"):
@@ -191,6 +194,7 @@ def demo(
     manifest = build_manifest(
         preset=preset, overrides={"plate.format": 12}, seed=seed, count=count, size=parse_size(size), coco=True
     )
+    check_render(manifest.size, workers=workers, count=count, metrics=True)
     check_directory(out, manifest, overwrite)
     with make_executor("local", workers=workers) as pool:
         summary = _render_with_progress(out, manifest, pool, overwrite)

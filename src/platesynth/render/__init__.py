@@ -7,7 +7,8 @@ from typing import Any
 
 from platesynth import __version__
 from platesynth.errors import ParameterError
-from platesynth.render.result import RenderResult, WellInfo, plaque_counts
+from platesynth.limits import check_render
+from platesynth.render.result import RenderResult, WellInfo, check_size, plaque_counts
 from platesynth.scene.concrete import Scene
 
 BACKENDS: dict[str, str] = {
@@ -38,10 +39,13 @@ def render(scene: Scene, size: tuple[int, int] = (1024, 768), backend: str = "ra
     ------
     ParameterError
         For an unknown backend, a bad size, or options the backend does not take.
+    ResourceLimitError
+        If the render would need more memory than the limit (:mod:`platesynth.limits`).
     """
     _check_backend(backend)
     if backend == "raster" and options:
         raise ParameterError(f"{', '.join(sorted(options))}: Blender settings, which the raster backend does not take")
+    check_render(check_size(size), backend)
     module_name, function_name = BACKENDS[backend].split(":")
     function = getattr(importlib.import_module(module_name), function_name)
     return function(scene, size, **options)
