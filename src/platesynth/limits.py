@@ -378,7 +378,7 @@ def entropy_bytes(height: int, width: int, n_images: int, bins: int = 256) -> in
 def check_dataset_metrics(size: Sequence[int], n_images: int, bins: int = 256) -> None:
     """Refuse the dataset metrics at ``size`` = (height, width) over ``n_images`` images above the memory limit."""
     height, width = int(size[0]), int(size[1])
-    require_memory(entropy_bytes(height, width, n_images, bins), f"the dataset metrics at {width}x{height}")
+    require_memory(entropy_bytes(height, width, n_images, bins), f"computing the dataset metrics at {width}x{height}")
 
 
 def well_crop_bytes(size: int, wells_per_plate: int = 96) -> int:
@@ -389,7 +389,7 @@ def well_crop_bytes(size: int, wells_per_plate: int = 96) -> int:
 
 def check_well_crops(size: int, wells_per_plate: int = 96) -> None:
     """Refuse well crops of ``size`` x ``size`` pixels above the memory limit."""
-    require_memory(well_crop_bytes(size, wells_per_plate), f"well crops of {size}x{size}")
+    require_memory(well_crop_bytes(size, wells_per_plate), f"cropping wells to {size}x{size}")
 
 
 def pair_bytes(height: int, width: int) -> int:
@@ -399,7 +399,7 @@ def pair_bytes(height: int, width: int) -> int:
 
 def check_pair(height: int, width: int) -> None:
     """Refuse the pair metrics on images of ``height x width`` above the memory limit."""
-    require_memory(pair_bytes(height, width), f"the pair metrics at {width}x{height}")
+    require_memory(pair_bytes(height, width), f"computing the pair metrics at {width}x{height}")
 
 
 # ------------------------------------------------------------------------------------------------ the network

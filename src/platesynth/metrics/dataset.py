@@ -7,6 +7,7 @@ when its weights are available) feature statistics for the Fréchet and kernel d
 
 from __future__ import annotations
 
+import contextlib
 import os
 import warnings
 from pathlib import Path
@@ -14,8 +15,9 @@ from typing import Any
 
 import numpy as np
 
-from platesynth.errors import PlatesynthError, WeightsNotFoundError
-from platesynth.io import list_images, read_image, to_rgb_uint8
+from platesynth.errors import ImageReadError, PlatesynthError, WeightsNotFoundError
+from platesynth.io import image_size, list_images, read_image, to_rgb_uint8
+from platesynth.limits import check_dataset_metrics
 from platesynth.metrics.diversity import BrightnessVariability, PixelEntropy, grayscale
 from platesynth.metrics.pair import MetricSkippedWarning, ProgressCallback
 
@@ -162,11 +164,20 @@ def dataset_metrics(
         If the naturalness of an image is undefined, e.g. a constant image (the message names the file).
     WeightsNotFoundError
         If the AlexNet weights are needed and cannot be found.
+    ResourceLimitError
+        If the per-position metrics at ``size`` (or the first image's) would need more memory than the limit.
     """
     directory = Path(directory)
-    list_images(directory)  # refuse a missing or empty folder before loading any network
+    paths = list_images(directory)  # refuse a missing or empty folder before loading any network
+    n_images = len(paths)
     if reference is not None:
-        list_images(reference)
+        n_images = max(n_images, len(list_images(reference)))
+    if size is None:  # the first image's, from its header (else PixelEntropy checks it before allocating)
+        with contextlib.suppress(ImageReadError):
+            width, height = image_size(paths[0])
+            check_dataset_metrics((height, width), n_images)
+    else:
+        check_dataset_metrics(size, n_images)
     extractors = _feature_extractors() if reference is not None and frechet else {}
     scanned = _scan_folder(directory, size, extractors, progress, str(directory))
     result: dict[str, Any] = {

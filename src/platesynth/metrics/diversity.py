@@ -27,6 +27,7 @@ from PIL import Image
 
 from platesynth.errors import EmptyDatasetError, ImageReadError, ParameterError
 from platesynth.io import read_image, to_rgb_uint8
+from platesynth.limits import entropy_bytes, require_memory
 
 __all__ = ["BrightnessVariability", "PixelEntropy", "grayscale", "size_matched_entropy"]
 
@@ -200,6 +201,7 @@ class PixelEntropy(_PerPositionMetric):
         """Add one image (``(H, W)``, ``(H, W, 3)`` or ``(H, W, 4)``; uint8 or uint16)."""
         gray = self._gray(image)
         if self._counts is None:
+            require_memory(entropy_bytes(*gray.shape, 255, self.bins), f"computing the pixel entropy at {gray.shape[1]}x{gray.shape[0]}")
             self._counts = np.zeros(gray.size * self.bins, dtype=np.uint8)
             batch = max(1, min(_BATCH_IMAGES, _BATCH_BYTES // gray.size))
             self._pending = np.empty((batch, gray.size), dtype=np.uint8)

@@ -21,6 +21,7 @@ from skimage.transform import resize as skimage_resize
 
 from platesynth.errors import ImageReadError, MetricUndefinedError, ShapeMismatchError, WeightsNotFoundError
 from platesynth.io import read_image, to_rgb_uint8
+from platesynth.limits import check_pair
 
 __all__ = [
     "MetricSkippedWarning",
@@ -224,6 +225,7 @@ def compare_pair(
         progress(steps[0], 0, len(steps))
     real_name, real_image = _load(real, "real image")
     synthetic_name, synthetic_image = _load(synthetic, "synthetic image")
+    check_pair(*max(real_image.shape[:2], synthetic_image.shape[:2], key=lambda shape: shape[0] * shape[1]))
     real_rgb = to_rgb_uint8(real_image)
     synthetic_rgb = to_rgb_uint8(synthetic_image)
     if real_rgb.shape != synthetic_rgb.shape:

@@ -58,6 +58,7 @@ from scipy.stats import wasserstein_distance
 
 from platesynth.errors import DatasetError, MetricUndefinedError, ParameterError, PlatesynthError, ShapeMismatchError
 from platesynth.io import list_images, read_image, to_rgb_uint8
+from platesynth.limits import check_well_crops
 from platesynth.metrics.diversity import grayscale
 from platesynth.metrics.naturalness import naturalness_factor
 from platesynth.metrics.pair import ProgressCallback
@@ -528,6 +529,7 @@ class WellCrops:
     ) -> None:
         if size < 31 and extractor is not None:
             raise ParameterError(f"well crops of {size} px are too small for deep features (at least 31)")
+        check_well_crops(size, grid[0] * grid[1])
         self.size = size
         self.extractor = extractor
         self.grid = grid
