@@ -22,7 +22,7 @@ from platesynth.segment.counts import evaluate_counts, sort_wells
 from platesynth.segment.data import SegmentationDataset
 from platesynth.segment.loss import segmentation_loss
 from platesynth.segment.matching import evaluate_masks
-from platesynth.segment.model import ModelConfig, StarDistTwoBranch, load_model
+from platesynth.segment.model import ModelConfig, StarDistTwoBranch, UnfinishedModelError, load_model
 from platesynth.segment.train import CHECKPOINT_NAME, TrainConfig, split_items, train
 
 runner = CliRunner()
@@ -85,10 +85,17 @@ def test_training_resumes_to_the_same_weights(rendered, tmp_path):
 
     with pytest.raises(_Stop):
         train(config, tmp_path / "resumed", TINY, progress=stop_after_first_epoch)
+    # the interrupted training is no model yet: loading it says where it stopped and how to resume
+    assert json.loads((tmp_path / "resumed" / "config.json").read_text())["complete"] is False
+    with pytest.raises(UnfinishedModelError, match=r"unfinished training \(stopped during epoch 2 of 2\); resume it"):
+        load_model(tmp_path / "resumed")
+    assert load_model(tmp_path / "resumed", allow_unfinished=True).config.complete is False
     resumed = train(config, tmp_path / "resumed", TINY)
+    assert load_model(tmp_path / "resumed").config.complete is True
     assert resumed.resumed_from_epoch == 1 and resumed.epochs_done == 2
-    first = torch.load(tmp_path / "straight" / CHECKPOINT_NAME, weights_only=False)["model"]
-    second = torch.load(tmp_path / "resumed" / CHECKPOINT_NAME, weights_only=False)["model"]
+    # checkpoints hold tensors and plain data only: they load with weights_only=True
+    first = torch.load(tmp_path / "straight" / CHECKPOINT_NAME, weights_only=True)["model"]
+    second = torch.load(tmp_path / "resumed" / CHECKPOINT_NAME, weights_only=True)["model"]
     assert all(torch.equal(first[k], second[k]) for k in first)
     assert [h["train_loss"] for h in straight.history] == [h["train_loss"] for h in resumed.history]
 

@@ -2,12 +2,18 @@
 
 Each branch predicts, on its own grid, an object probability (as a logit) and ``n_rays`` radial distances in pixels of
 the network input. A model directory holds ``weights.pt`` (a torch state_dict) and ``config.json`` (:class:`ModelConfig`).
+
+A model directory says whether the training that wrote it finished: ``config.json``'s ``complete`` is false while
+``platesynth train`` runs and true once it has written everything (the last write of a training). :func:`load_model`
+refuses an unfinished training with a message saying where it stopped and how to resume it. Files are loaded with
+``torch.load(..., weights_only=True)`` only (:func:`load_tensors`): tensors and plain data, never other pickled objects.
 """
 
 from __future__ import annotations
 
 import json
 import math
+import pickle
 from pathlib import Path
 from typing import Any
 
@@ -23,6 +29,14 @@ from platesynth.io import atomic_path, write_json
 BRANCHES = ("wells", "plaques")
 CONFIG_NAME = "config.json"
 WEIGHTS_NAME = "weights.pt"
+TRAIN_CONFIG_NAME = "train.json"
+"""A training's settings, in a model directory that ``platesynth train`` writes (see :mod:`platesynth.segment.train`)."""
+HISTORY_NAME = "history.json"
+"""A training's losses per finished epoch."""
+
+
+class UnfinishedModelError(DatasetError):
+    """A model directory holds a training that has not finished (interrupted, or still running)."""
 
 
 class BranchConfig(BaseModel):
@@ -58,6 +72,9 @@ class ModelConfig(BaseModel):
         0.0, ge=0.0, le=1.0, description="a well is countable where at least this share of it is still stained "
         "(platesynth.segment.countability; tuned on synthetic validation images; 0: every well)")
     training: dict[str, Any] = Field(default_factory=dict, description="description of the training data and recipe")
+    complete: bool | None = Field(
+        None, description="whether the training that wrote the model finished (false while it runs; see "
+        "is_complete for models written before this field)")
     version: str = Field(__version__, description="platesynth version that wrote the model")
 
     @field_validator("branches")
@@ -161,8 +178,21 @@ class StarDistTwoBranch(nn.Module):
         return {name: decoder(skips) for name, decoder in self.decoders.items()}
 
 
+def is_complete(config: ModelConfig, model_dir: str | Path) -> bool:
+    """Whether the model in ``model_dir`` (with its ``config``) is complete: ``config.complete`` where it is set;
+    for models written before that field, unless a training directory's ``config.json`` lacks the ``training``
+    description that the end of a training writes."""
+    if config.complete is not None:
+        return config.complete
+    return bool(config.training) or not (Path(model_dir) / TRAIN_CONFIG_NAME).is_file()
+
+
 def save_model(model: StarDistTwoBranch, model_dir: str | Path) -> None:
-    """Write ``weights.pt`` and ``config.json`` into ``model_dir`` (atomically, weights first)."""
+    """Write ``weights.pt`` and ``config.json`` into ``model_dir`` (atomically, weights first).
+
+    ``config.json`` is the model's configuration as it is: a training saves its best weights so far with
+    ``complete`` false, and writes ``complete`` true last.
+    """
     model_dir = Path(model_dir)
     model_dir.mkdir(parents=True, exist_ok=True)
     with atomic_path(model_dir / WEIGHTS_NAME) as tmp:
@@ -180,32 +210,100 @@ def read_model_config(model_dir: str | Path) -> ModelConfig:
     """
     path = Path(model_dir) / CONFIG_NAME
     if not path.is_file():
+        if (Path(model_dir) / TRAIN_CONFIG_NAME).is_file():
+            raise UnfinishedModelError(unfinished_message(model_dir))
         raise DatasetError(f"{path}: no such file (is {model_dir} a model directory written by 'platesynth train'?)")
     try:
-        return ModelConfig.model_validate(json.loads(path.read_text()))
+        return ModelConfig.model_validate(json.loads(path.read_bytes().decode("utf-8")))
+    except UnicodeDecodeError as exc:
+        raise DatasetError(f"{path}: not a valid model configuration (not UTF-8: byte at position {exc.start})") from None
     except (json.JSONDecodeError, ValidationError) as exc:
         first = str(exc).splitlines()[0] if isinstance(exc, json.JSONDecodeError) else exc.errors()[0]["msg"]
         raise DatasetError(f"{path}: not a valid model configuration ({first})") from None
 
 
-def load_model(model_dir: str | Path, device: str | torch.device = "cpu") -> StarDistTwoBranch:
-    """Rebuild the network stored in ``model_dir`` in evaluation mode on ``device``.
+def _read_json(path: Path) -> Any:
+    try:
+        return json.loads(path.read_bytes().decode("utf-8"))
+    except (OSError, ValueError):
+        return None
+
+
+def unfinished_message(model_dir: str | Path) -> str:
+    """Where the training in ``model_dir`` stopped (from ``train.json`` and ``history.json``) and how to resume it."""
+    model_dir = Path(model_dir)
+    settings = _read_json(model_dir / TRAIN_CONFIG_NAME)
+    history = _read_json(model_dir / HISTORY_NAME)
+    epochs = settings.get("train", {}).get("epochs") if isinstance(settings, dict) else None
+    done = len(history) if isinstance(history, list) else 0
+    if isinstance(epochs, int) and done >= epochs:
+        where = f"stopped after its {epochs} epochs, before its thresholds were tuned and the model was completed"
+    elif isinstance(epochs, int):
+        where = f"stopped during epoch {done + 1} of {epochs}"
+    else:
+        where = "stopped before it finished"
+    return (
+        f"{model_dir} is an unfinished training ({where}); resume it by running the same "
+        f"`platesynth train --out {model_dir} ...` command again, with the options it was started with "
+        f"(they are in {model_dir / TRAIN_CONFIG_NAME})"
+    )
+
+
+def load_tensors(path: str | Path, device: str | torch.device = "cpu") -> Any:
+    """``torch.load(path, weights_only=True)``: tensors and plain data (dicts, lists, numbers, strings) only.
+
+    A file holding any other pickled object (which unpickling would run) is refused, not loaded.
 
     Raises
     ------
     DatasetError
-        If ``config.json`` or ``weights.pt`` is missing, invalid, or the weights do not fit the configuration.
+        If the file is missing, unreadable, not a torch file, or holds anything but tensors and plain data.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise DatasetError(f"{path}: no such file")
+    try:
+        return torch.load(path, map_location=device, weights_only=True)
+    except pickle.UnpicklingError:
+        raise DatasetError(
+            f"{path}: refused, it holds objects other than tensors and plain data (platesynth loads nothing else; "
+            "a file that needs more could run code when loaded)"
+        ) from None
+    except Exception as exc:  # torch raises many types (zip, runtime, EOF, unicode) for a broken file
+        first = (str(exc).strip().splitlines() or [exc.__class__.__name__])[0]
+        raise DatasetError(f"{path}: not a readable torch file ({exc.__class__.__name__}: {first})") from None
+
+
+def load_model(model_dir: str | Path, device: str | torch.device = "cpu", allow_unfinished: bool = False) -> StarDistTwoBranch:
+    """Rebuild the network stored in ``model_dir`` in evaluation mode on ``device``.
+
+    Parameters
+    ----------
+    model_dir : a model directory written by ``platesynth train``.
+    device : where to put the network.
+    allow_unfinished : load the best weights so far of a training that has not finished (to inspect it).
+
+    Raises
+    ------
+    UnfinishedModelError
+        If the training that writes ``model_dir`` has not finished (unless ``allow_unfinished``).
+    DatasetError
+        If ``config.json`` or ``weights.pt`` is missing, invalid, holds more than tensors, or the weights do not
+        fit the configuration.
     """
     config = read_model_config(model_dir)
+    if not allow_unfinished and not is_complete(config, model_dir):
+        raise UnfinishedModelError(unfinished_message(model_dir))
     path = Path(model_dir) / WEIGHTS_NAME
     if not path.is_file():
         raise DatasetError(f"{path}: no such file (model weights missing)")
     model = StarDistTwoBranch(config)
+    state = load_tensors(path)
     try:
-        state = torch.load(path, map_location="cpu", weights_only=True)
         model.load_state_dict(state)
-    except (RuntimeError, OSError, EOFError, KeyError) as exc:
-        raise DatasetError(f"{path}: weights do not load into the configured network ({str(exc).splitlines()[0]})") from None
+    except (RuntimeError, OSError, EOFError, KeyError, TypeError, AttributeError, ValueError) as exc:
+        first = (str(exc).strip().splitlines() or [exc.__class__.__name__])[0]
+        raise DatasetError(f"{path}: weights do not load into the configured network ({first})") from None
     return model.to(device).eval()
 
 

@@ -5,6 +5,12 @@ validation loss so far, ``config.json``), ``train.json`` (the :class:`TrainConfi
 asked for), ``checkpoint.pt`` (the state at the end of the last finished epoch) and ``history.json`` (losses per
 epoch). Running the same training again resumes from the checkpoint; every random draw is keyed by the seed, the
 epoch and the sample's position, so a resumed run ends with the same weights as an uninterrupted one.
+
+While a training runs, ``config.json`` says ``"complete": false`` and :func:`~platesynth.segment.model.load_model`
+refuses the directory (predict, evaluate and demo say where the training stopped and how to resume it); the
+training's very last write is ``config.json`` with the tuned thresholds and ``"complete": true``. The checkpoint holds
+tensors and plain data only and is read with ``weights_only=True``
+(:func:`~platesynth.segment.model.load_tensors`): a file holding other pickled objects is refused, never unpickled.
 """
 
 from __future__ import annotations
@@ -23,19 +29,29 @@ from pydantic import BaseModel, ConfigDict, Field, field_validator, model_valida
 
 from platesynth import __version__
 from platesynth.data.layout import DatasetItem, list_items, load_item, read_manifest
-from platesynth.errors import DatasetError, ParameterError
-from platesynth.io import atomic_path, write_json
+from platesynth.errors import DatasetError, ParameterError, PlatesynthError
+from platesynth.io import atomic_path, image_size, write_json
+from platesynth.limits import check_training
 from platesynth.render.result import plaque_counts
 from platesynth.segment.countability import tune_on_items as tune_countability
 from platesynth.segment.data import Augmentation, MixSampler, SegmentationDataset
 from platesynth.segment.loss import segmentation_loss
 from platesynth.segment.matching import match_instances
-from platesynth.segment.model import BRANCHES, ModelConfig, StarDistTwoBranch, save_model, select_device
+from platesynth.segment.model import (
+    BRANCHES,
+    CONFIG_NAME,
+    HISTORY_NAME,
+    TRAIN_CONFIG_NAME,
+    WEIGHTS_NAME,
+    ModelConfig,
+    StarDistTwoBranch,
+    load_tensors,
+    save_model,
+    select_device,
+)
 from platesynth.segment.predict import Polygons, nms_polygons, polygons_to_mask, predict_maps
 
-TRAIN_CONFIG_NAME = "train.json"
 CHECKPOINT_NAME = "checkpoint.pt"
-HISTORY_NAME = "history.json"
 PROB_THRESHOLDS = (0.1, 0.15, 0.2, 0.25, 0.3, 0.4, 0.5, 0.6, 0.7)
 NMS_THRESHOLDS = (0.2, 0.3, 0.4, 0.5)
 
@@ -127,7 +143,7 @@ def _identity(config: TrainConfig, model_config: ModelConfig) -> dict[str, Any]:
     """What a training directory is: the training settings and the network asked for (saved as ``train.json``)."""
     return {
         "train": config.model_dump(mode="json"),
-        "model": model_config.model_dump(mode="json", exclude={"training", "version"}),
+        "model": model_config.model_dump(mode="json", exclude={"training", "version", "complete"}),
     }
 
 
@@ -160,6 +176,45 @@ def _check_model_dir(model_dir: Path, identity: dict[str, Any], overwrite: bool)
     for name in (CHECKPOINT_NAME, HISTORY_NAME, TRAIN_CONFIG_NAME):
         (model_dir / name).unlink(missing_ok=True)
     return False
+
+
+_CHECKPOINT_KEYS = {"model": dict, "optimizer": dict, "scheduler": dict, "history": list, "best_val": float, "epoch": int}
+
+
+def _read_checkpoint(path: Path, device: torch.device) -> dict[str, Any]:
+    """The state saved at the end of the last finished epoch: tensors and plain data only (``weights_only=True``).
+
+    Raises
+    ------
+    DatasetError
+        If the file holds other objects, cannot be read, or lacks a part of the state.
+    """
+    state = load_tensors(path, device)
+    if not isinstance(state, dict) or any(not isinstance(state.get(k), t) for k, t in _CHECKPOINT_KEYS.items()):
+        raise DatasetError(f"{path}: not a platesynth training checkpoint; delete it (or use --overwrite) to start again")
+    return state
+
+
+def _resume_from(state: dict[str, Any], path: Path, model: StarDistTwoBranch, optimizer: Any, scheduler: Any) -> None:
+    try:
+        model.load_state_dict(state["model"])
+        optimizer.load_state_dict(state["optimizer"])
+        scheduler.load_state_dict(state["scheduler"])
+    except (RuntimeError, KeyError, ValueError, TypeError, IndexError, AttributeError) as exc:
+        first = (str(exc).strip().splitlines() or [exc.__class__.__name__])[0]
+        raise DatasetError(f"{path}: does not fit this training ({first}); delete it (or use --overwrite) to start again") from None
+
+
+def _largest_image(datasets: Sequence[Sequence[DatasetItem]]) -> int:
+    """Pixels of the largest first image of the datasets (from the headers; 0 where unreadable: reported later)."""
+    pixels = 0
+    for items in datasets:
+        try:
+            width, height = image_size(items[0].image_path)
+        except (PlatesynthError, IndexError, OSError, ValueError):
+            continue
+        pixels = max(pixels, width * height)
+    return pixels
 
 
 def _collate(samples: list[dict[str, torch.Tensor]]) -> dict[str, torch.Tensor]:
@@ -262,6 +317,7 @@ def train(
         raise ParameterError(f"patch {config.patch[0]}x{config.patch[1]} must be a positive multiple of {multiple} on both sides")
     torch_device = select_device(device)  # validated before anything is written
     datasets = [list_items(directory) for directory in config.data]
+    check_training(model_config, config.patch, config.batch_size, _largest_image(datasets), config.num_workers)
     splits = [split_items(items, config.val_fraction, config.seed + number) for number, items in enumerate(datasets)]
     train_sets, val_sets = [s[0] for s in splits], [s[1] for s in splits]
     train_items = [item for items in train_sets for item in items]
@@ -273,10 +329,15 @@ def train(
         load_item(item)
     identity = _identity(config, model_config)
     resume = _check_model_dir(model_dir, identity, overwrite)
+    checkpoint = _read_checkpoint(model_dir / CHECKPOINT_NAME, torch_device) if resume else None
     if before_writing is not None:
         before_writing()
     model_dir.mkdir(parents=True, exist_ok=True)
+    if not resume:  # a model left by an earlier training must not pass for this one while it runs
+        for name in (CONFIG_NAME, WEIGHTS_NAME):
+            (model_dir / name).unlink(missing_ok=True)
     write_json(model_dir / TRAIN_CONFIG_NAME, identity)
+    model_config.complete = False  # every config.json written before the end says so
 
     torch.manual_seed(config.seed)
     model = StarDistTwoBranch(model_config).to(torch_device)
@@ -287,12 +348,9 @@ def train(
     )
     history: list[dict[str, float | None]] = []
     best_val, start_epoch = math.inf, 0
-    if resume:
-        state = torch.load(model_dir / CHECKPOINT_NAME, map_location=torch_device, weights_only=False)
-        model.load_state_dict(state["model"])
-        optimizer.load_state_dict(state["optimizer"])
-        scheduler.load_state_dict(state["scheduler"])
-        history, best_val, start_epoch = state["history"], state["best_val"], state["epoch"]
+    if checkpoint is not None:
+        _resume_from(checkpoint, model_dir / CHECKPOINT_NAME, model, optimizer, scheduler)
+        history, best_val, start_epoch = checkpoint["history"], checkpoint["best_val"], checkpoint["epoch"]
 
     augmentation = Augmentation() if config.augment else None
     train_data = SegmentationDataset(train_items, model_config, config.patch, augmentation, seed=config.seed)
@@ -339,7 +397,7 @@ def train(
             progress(dict(history[-1]))
 
     best = StarDistTwoBranch(model_config)
-    best.load_state_dict(torch.load(model_dir / "weights.pt", map_location="cpu", weights_only=True))
+    best.load_state_dict(load_tensors(model_dir / WEIGHTS_NAME))
     best = best.to(torch_device)
     thresholds = tune_thresholds(best, val_items) if config.tune_thresholds else {
         name: (b.prob_thresh, b.nms_thresh) for name, b in model_config.branches.items()
@@ -357,7 +415,8 @@ def train(
         "thresholds_tuned_on": len(val_items) if config.tune_thresholds else 0,
     }
     best.config.version = __version__
-    write_json(model_dir / "config.json", best.config.model_dump(mode="json"))
+    best.config.complete = True
+    write_json(model_dir / CONFIG_NAME, best.config.model_dump(mode="json"))  # the last write: the model is complete
     return TrainSummary(model_dir, len(history), best_val, history, thresholds, start_epoch)
 
 
