@@ -24,6 +24,7 @@ from platesynth.data.layout import item_paths
 from platesynth.data.writer import write_item
 from platesynth.errors import DatasetError, ParameterError
 from platesynth.io import read_image, to_rgb_uint8
+from platesynth.limits import check_prediction
 from platesynth.render.result import RenderResult
 from platesynth.segment.countability import judge_countable, stained_fractions
 from platesynth.segment.counts import sort_wells, write_count_table
@@ -58,6 +59,7 @@ def predict_maps(model: StarDistTwoBranch, image: np.ndarray) -> tuple[dict[str,
     working_shape : (height, width) of the resized image the maps refer to.
     """
     config = model.config
+    check_prediction(config, image.shape)
     normalised = normalize_image(to_rgb_uint8(image), config.percentile_low, config.percentile_high)
     scale = working_scale(image.shape, config.input_long_side)
     shape = (max(1, round(image.shape[0] * scale)), max(1, round(image.shape[1] * scale)))
@@ -186,7 +188,7 @@ def predict_files(
         raise DatasetError("no images given")
     _unique_stems(paths)
     for path in paths:
-        read_image(path)
+        check_prediction(model.config, read_image(path).shape, str(path))
     if before_writing is not None:
         before_writing()
     out_dir = Path(out_dir)
