@@ -211,8 +211,7 @@ class Claim:
                 write_json(self.path / MARKER_NAME, {"kind": self.kind, "platesynth_version": __version__})
         except OSError as exc:
             self.release()
-            where = exc.filename if exc.filename and Path(exc.filename) != self.path else self.path
-            raise OutputError(f"{where}: cannot write the output here ({exc.strerror or exc})") from None
+            raise OutputError(f"{self.path}: cannot write here ({exc.strerror or exc})") from None
         self.taken = True
 
 

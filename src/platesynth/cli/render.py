@@ -9,7 +9,7 @@ import typer
 from rich.progress import ProgressColumn, Task
 from rich.text import Text
 
-from platesynth.cli._common import console, print_json, print_table, progress_bar, user_errors
+from platesynth.cli._common import console, print_json, print_table, progress_bar, styled, user_errors
 from platesynth.cli.options import (
     Backend,
     BlenderDevice,
@@ -31,6 +31,7 @@ from platesynth.data.writer import check_directory
 from platesynth.errors import ParameterError
 from platesynth.io import write_png
 from platesynth.limits import check_render
+from platesynth.outputs import PREVIEW_TEXT_KEY, claim_output
 
 
 class _RateColumn(ProgressColumn):
@@ -65,7 +66,7 @@ def _report(summary: BatchSummary, as_json: bool) -> None:
         highlight=False,
     )
     for name, error in list(summary.failed.items())[:10]:
-        console.print(f"[bold red]failed:[/] {name}: {error.splitlines()[0]}", highlight=False, soft_wrap=True)
+        console.print(styled("failed:", "bold red", f"{name}: {error.splitlines()[0]}"), highlight=False, soft_wrap=True)
     if len(summary.failed) > 10:
         console.print(f"... and {len(summary.failed) - 10} more (see manifest.json)", highlight=False)
 
@@ -95,7 +96,9 @@ def render(
         float, typer.Option("--connect-timeout", help="Seconds to wait for the Dask scheduler.")
     ] = 10.0,
     coco: Annotated[bool, typer.Option("--coco", help="Also write annotations.coco.json (wells and plaques).")] = False,
-    overwrite: Annotated[bool, typer.Option("--overwrite", help="Replace a different dataset found in --out.")] = False,
+    overwrite: Annotated[
+        bool, typer.Option("--overwrite", help="Replace a different dataset, or another kind of output, in --out.")
+    ] = False,
     as_json: Annotated[bool, typer.Option("--json", help="Print a JSON summary on stdout.")] = False,
 ) -> None:
     """Render an annotated dataset: images, instance masks, params, counts.csv (resumes an interrupted run)."""
@@ -113,9 +116,12 @@ def render(
         coco=coco,
     )
     check_render(manifest.size, manifest.backend, workers=1 if scheduler else workers, count=manifest.count)
-    check_directory(out, manifest, overwrite)
+    claim = claim_output(
+        out, "dataset", inputs=[config], overwrite=overwrite, check=lambda: check_directory(out, manifest, overwrite)
+    )
     kind = "dask" if scheduler is not None else executor
-    with make_executor(kind, workers=workers, scheduler=scheduler, timeout=connect_timeout) as pool:
+    with claim, make_executor(kind, workers=workers, scheduler=scheduler, timeout=connect_timeout) as pool:
+        claim.take()
         console.print(f"rendering {manifest.count} images into {out} on {pool.describe()}", highlight=False)
         summary = _render_with_progress(out, manifest, pool, overwrite)
     _report(summary, as_json)
@@ -139,14 +145,15 @@ def preview(
     device: BlenderDevice = None,
     columns: Annotated[int, typer.Option("--columns", help="Images per row.")] = 4,
     outlines: Annotated[bool, typer.Option("--outlines/--no-outlines", help="Draw well and plaque outlines.")] = True,
+    overwrite: Annotated[
+        bool, typer.Option("--overwrite", help="Replace a file in --out that is not a contact sheet.")
+    ] = False,
 ) -> None:
     """Render a few scenes small and tile them into one contact sheet, to look at a configuration."""
     from platesynth.data.preview import contact_sheet, draw_outlines  # scikit-image: not for every command
 
     if out.suffix.lower() != ".png":
         raise ParameterError(f"{out}: the contact sheet is a PNG file; give a name ending in .png")
-    if out.is_dir():
-        raise ParameterError(f"{out}: is a directory; give a file name ending in .png")
     if columns < 1:
         raise ParameterError(f"columns must be >= 1, got {columns}")
     manifest = build_manifest(
@@ -161,13 +168,15 @@ def preview(
         engine=engine,
         device=device,
     )
+    claim_output(out, "preview", inputs=[config], overwrite=overwrite)
     check_render(manifest.size, manifest.backend, count=count, kept_images=count)
     tiles = []
     with progress_bar() as bar:
         for index in bar.track(range(count), description="rendering"):
             result, _ = render_item(manifest, index)
             tiles.append(draw_outlines(result.image, result.wells, result.plaques) if outlines else result.image)
-    write_png(out, contact_sheet(tiles, columns=columns, tile_width=manifest.size[0]))
+    sheet = contact_sheet(tiles, columns=columns, tile_width=manifest.size[0])
+    write_png(out, sheet, text={PREVIEW_TEXT_KEY: "preview"})
     console.print(f"wrote {out} ({count} scenes, seed {seed})", highlight=False)
 
 
@@ -179,7 +188,9 @@ def demo(
     preset: Preset = "high",
     seed: Seed = 0,
     workers: Annotated[int, typer.Option("--workers", "-j", help="Local worker processes.")] = 1,
-    overwrite: Annotated[bool, typer.Option("--overwrite", help="Replace a different dataset found in --out.")] = False,
+    overwrite: Annotated[
+        bool, typer.Option("--overwrite", help="Replace a different demo, or another kind of output, in --out.")
+    ] = False,
     model: Annotated[
         Path | None,
         typer.Option(
@@ -195,14 +206,19 @@ def demo(
         preset=preset, overrides={"plate.format": 12}, seed=seed, count=count, size=parse_size(size), coco=True
     )
     check_render(manifest.size, workers=workers, count=count, metrics=True)
-    check_directory(out, manifest, overwrite)
-    with make_executor("local", workers=workers) as pool:
-        summary = _render_with_progress(out, manifest, pool, overwrite)
-    _report(summary, as_json=False)
-    items = list_items(out)
-    tiles = [draw_outlines(*load_item(item)) for item in items[:12]]
-    sheet = out / "preview.png"
-    write_png(sheet, contact_sheet(tiles, columns=4, tile_width=256))
+    network = _load_counter(model) if model is not None else None  # a bad --model is refused before rendering
+    claim = claim_output(
+        out, "demo", inputs=[model], overwrite=overwrite, check=lambda: check_directory(out, manifest, overwrite)
+    )
+    with claim:
+        with make_executor("local", workers=workers) as pool:
+            claim.take()
+            summary = _render_with_progress(out, manifest, pool, overwrite)
+        _report(summary, as_json=False)
+        items = list_items(out)
+        tiles = [draw_outlines(*load_item(item)) for item in items[:12]]
+        sheet = out / "preview.png"
+        write_png(sheet, contact_sheet(tiles, columns=4, tile_width=256))
     print_table(dataset_metrics(out / "images"), title=f"dataset metrics of {out / 'images'}")
     console.print(
         f"images, masks and params in {out}/; per-well counts in {out / 'counts.csv'}; "
@@ -210,21 +226,25 @@ def demo(
         highlight=False,
     )
     if model is not None:
-        _demo_counts(model, out)
+        _demo_counts(network, model, out)
     if summary.failed:
         raise typer.Exit(code=1)
 
 
-def _demo_counts(model_dir: Path, out: Path) -> None:
+def _load_counter(model_dir: Path) -> Any:
+    from platesynth.segment.model import load_model, select_device
+
+    return load_model(model_dir, select_device("auto"))
+
+
+def _demo_counts(network: Any, model_dir: Path, out: Path) -> None:
     """Count plaques per well in the demo images with a trained model, against the counts the renderer wrote."""
     import functools
 
     from platesynth.cli.segment import print_count_summary
     from platesynth.segment.counts import evaluate_counts
-    from platesynth.segment.model import load_model, select_device
     from platesynth.segment.predict import predict_image
 
-    network = load_model(model_dir, select_device("auto"))
     predictor = functools.partial(predict_image, network, plate_format=12)
     report = evaluate_counts(predictor, out / "images", out / "counts.csv", plate_format=12)
     print_count_summary(report, title=f"plaques per well: {model_dir} against the rendered truth")

@@ -191,6 +191,13 @@ def _load_network(
     """The trained network and its per-branch (prob, nms) thresholds: the model's own unless overridden."""
     from platesynth.segment.model import load_model, select_device
 
+    for option, value, low, high in (
+        ("--well-prob", well[0], 0.0, 1.0), ("--plaque-prob", plaque[0], 0.0, 1.0),
+        ("--well-nms", well[1], 0.0, 1.0), ("--plaque-nms", plaque[1], 0.0, 1.0),
+    ):
+        if value is not None and not (low < value < high if option.endswith("prob") else low <= value <= high):
+            interval = f"({low:g}, {high:g})" if option.endswith("prob") else f"[{low:g}, {high:g}]"
+            raise ParameterError(f"{option} must be in {interval}, got {value}")
     _set_threads(threads)
     network = load_model(model_dir, select_device(device))
     thresholds = {}
