@@ -480,6 +480,43 @@ def check_training(config: Any, patch: Sequence[int], batch_size: int, source_pi
     )
 
 
+# ------------------------------------------------------------------------------------------------ torch files
+
+
+def load_torch_file(path: str | os.PathLike, device: Any = "cpu") -> Any:
+    """``torch.load(path, weights_only=True)``: tensors and plain data only, whatever the file holds.
+
+    Raises
+    ------
+    RefusedFileError
+        If the file holds anything else (an object whose unpickling would run code): it is never unpickled.
+    Exception
+        torch's own errors for a file that is not a torch file (callers turn them into their own message).
+    """
+    import pickle
+    import warnings
+
+    import torch
+
+    with warnings.catch_warnings():  # torch warns about unusual pickle protocols before refusing them
+        warnings.simplefilter("ignore")
+        try:
+            return torch.load(path, map_location=device, weights_only=True)
+        except pickle.UnpicklingError as exc:
+            text = str(exc)
+            detail = text.partition("WeightsUnpickler error:")[2].strip() or text.strip()
+            first = (detail.splitlines() or ["unreadable"])[0].strip().rstrip(".")
+            first = first.split(" was not an allowed global")[0].replace("Unsupported global: GLOBAL ", "it names ")
+            raise RefusedFileError(
+                f"{path}: refused, not a file of tensors and plain data only ({first}); platesynth never unpickles "
+                "other objects, which could run code"
+            ) from None
+
+
+class RefusedFileError(PlatesynthError):
+    """A file holds more than tensors and plain data, so it is not loaded."""
+
+
 # -------------------------------------------------------------------------------------------------------- YAML
 
 

@@ -41,6 +41,7 @@ from pathlib import Path
 import torch
 
 from platesynth.errors import ParameterError, WeightsNotFoundError
+from platesynth.limits import RefusedFileError, load_torch_file
 
 WEIGHTS_DIR_ENV = "PLATESYNTH_WEIGHTS_DIR"
 FID_WEIGHTS_ENV = "PLATESYNTH_FID_WEIGHTS"
@@ -158,9 +159,12 @@ def content_sha256(state_dict: Mapping[str, torch.Tensor], prefix: str = "featur
 
 def _read_state_dict(path: Path) -> dict[str, torch.Tensor]:
     try:
-        state_dict = torch.load(path, map_location="cpu", weights_only=True)
-    except Exception as exc:  # torch raises many types (pickle, zip, runtime) for a broken file
-        raise WeightsNotFoundError(f"{path}: cannot read weights ({exc.__class__.__name__}: {exc})") from None
+        state_dict = load_torch_file(path)  # tensors and plain data only
+    except RefusedFileError as exc:
+        raise WeightsNotFoundError(f"{path}: cannot read weights ({str(exc).removeprefix(f'{path}: ')})") from None
+    except Exception as exc:  # torch raises many types (zip, runtime, EOF) for a broken file
+        first = (str(exc).strip().splitlines() or [""])[0]
+        raise WeightsNotFoundError(f"{path}: cannot read weights ({exc.__class__.__name__}: {first})") from None
     if not isinstance(state_dict, Mapping):
         raise WeightsNotFoundError(f"{path}: not a state dict (found {type(state_dict).__name__})")
     return dict(state_dict)

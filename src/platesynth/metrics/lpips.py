@@ -29,6 +29,7 @@ from torch import nn
 
 from platesynth.errors import ParameterError, ShapeMismatchError, WeightsNotFoundError
 from platesynth.io import to_rgb_uint8
+from platesynth.limits import load_torch_file
 from platesynth.metrics.networks import ImageNetScaling, build_backbone
 from platesynth.weights import resolve_weights
 
@@ -50,7 +51,7 @@ def _load_linear_weights(net: str) -> list[torch.Tensor]:
             f"{resource}: sha256 does not match the LPIPS v0.1 {net} weights; reinstall platesynth"
         )
     with resources.as_file(resource) as path:
-        state_dict = torch.load(path, map_location="cpu", weights_only=True)
+        state_dict = load_torch_file(path)  # tensors only (and hash-checked above)
     return [state_dict[f"lin{i}.model.1.weight"] for i in range(len(state_dict))]
 
 

@@ -13,7 +13,6 @@ from __future__ import annotations
 
 import json
 import math
-import pickle
 from pathlib import Path
 from typing import Any
 
@@ -25,6 +24,7 @@ from torch import nn
 from platesynth import __version__
 from platesynth.errors import DatasetError, ParameterError
 from platesynth.io import atomic_path, write_json
+from platesynth.limits import RefusedFileError, load_torch_file
 
 BRANCHES = ("wells", "plaques")
 CONFIG_NAME = "config.json"
@@ -263,12 +263,9 @@ def load_tensors(path: str | Path, device: str | torch.device = "cpu") -> Any:
     if not path.is_file():
         raise DatasetError(f"{path}: no such file")
     try:
-        return torch.load(path, map_location=device, weights_only=True)
-    except pickle.UnpicklingError:
-        raise DatasetError(
-            f"{path}: refused, it holds objects other than tensors and plain data (platesynth loads nothing else; "
-            "a file that needs more could run code when loaded)"
-        ) from None
+        return load_torch_file(path, device)
+    except RefusedFileError as exc:
+        raise DatasetError(str(exc)) from None
     except Exception as exc:  # torch raises many types (zip, runtime, EOF, unicode) for a broken file
         first = (str(exc).strip().splitlines() or [exc.__class__.__name__])[0]
         raise DatasetError(f"{path}: not a readable torch file ({exc.__class__.__name__}: {first})") from None
