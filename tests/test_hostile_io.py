@@ -385,6 +385,14 @@ def test_overwrite_replaces_another_kind_and_resumes_its_own(work):
     assert not (work / "ds" / ".platesynth.lock").exists()
 
 
+def test_overwrite_never_removes_the_commands_own_inputs(work):
+    image = work / "ds" / "images" / "000000.png"
+    before = image.read_bytes()
+    ok("predict", image, "--model", work / "plaque12", "--out", work / "ds", "--overwrite")
+    assert image.read_bytes() == before  # the input stayed (predict writes the same RGB pixels under its name)
+    assert not (work / "ds" / "manifest.json").exists() and (work / "ds" / "params" / "000000.json").is_file()
+
+
 def _children(pid: int) -> set[int]:
     children = set()
     for stat in Path("/proc").glob("[0-9]*/stat"):

@@ -5,7 +5,8 @@ Every command that writes passes its output through :func:`claim_output` once al
 - A folder output (a rendered dataset, a demo folder, a prediction folder, a model directory) holds a small marker,
   ``.platesynth-output``, naming its kind; folders written before the marker existed are recognised by their files
   (:func:`folder_kind`). A folder of another kind, or a non-empty folder platesynth did not write, is refused unless
-  ``overwrite``; with ``overwrite`` the files the other kind writes are removed first (and nothing else).
+  ``overwrite``; with ``overwrite`` the files the other kind writes are removed first (nothing else, and never the
+  command's own inputs).
 - A file output (a contact sheet, a per-well table, a ``.blend`` scene) may replace an earlier file of its own kind
   (recognised by its content); another existing file, or one inside a platesynth output folder, is refused unless
   ``overwrite``.
@@ -22,7 +23,7 @@ import contextlib
 import errno
 import json
 import os
-from collections.abc import Callable, Iterable, Iterator
+from collections.abc import Callable, Iterable, Iterator, Sequence
 from contextlib import ExitStack, contextmanager
 from pathlib import Path
 from typing import Any
@@ -168,8 +169,9 @@ class Claim:
     Use as a context manager: the folder's lock is held from :meth:`take` until the block ends.
     """
 
-    def __init__(self, path: Path, kind: str, existing: str | None, overwrite: bool) -> None:
+    def __init__(self, path: Path, kind: str, existing: str | None, overwrite: bool, inputs: list[Path]) -> None:
         self.path = path
+        self.inputs = inputs
         self.kind = kind
         self.existing = existing
         self.overwrite = overwrite
@@ -203,7 +205,7 @@ class Claim:
             self.path.mkdir(parents=True, exist_ok=True)
             self._stack.enter_context(output_lock(self.path))
             if self.overwrite and self.existing in FOLDER_KINDS and self.existing != self.kind:
-                remove_output_files(self.path, self.existing)
+                remove_output_files(self.path, self.existing, keep=self.inputs)
             if _read_marker(self.path) != self.kind:
                 from platesynth import __version__
                 from platesynth.io import write_json
@@ -219,7 +221,7 @@ def claim_output(
     path: str | os.PathLike,
     kind: str,
     *,
-    inputs: Iterable[str | os.PathLike | None] = (),
+    inputs: Sequence[str | os.PathLike | None] = (),
     overwrite: bool = False,
     check: Callable[[], Any] | None = None,
 ) -> Claim:
@@ -278,41 +280,51 @@ def claim_output(
         )
     if check is not None:
         check()
-    return Claim(path, kind, existing, overwrite)
+    return Claim(path, kind, existing, overwrite, [Path(p) for p in inputs if p is not None])
 
 
 # --- removing another kind's files ---------------------------------------------------------------------------------
 
 _MODEL_FILES = ("weights.pt", "config.json", "train.json", "checkpoint.pt", "history.json")
+_ITEM_SUFFIXES = {"images": ".png", "masks/wells": ".tif", "masks/plaques": ".tif", "params": ".json"}
 
 
-def remove_output_files(directory: str | os.PathLike, kind: str) -> None:
-    """Delete the files an output of ``kind`` consists of from ``directory``, and nothing else."""
+def _files_of(directory: Path, kind: str) -> list[Path]:
+    """The files an output of ``kind`` in ``directory`` consists of (those there), temporary files included."""
+    if kind == "model":
+        return [directory / name for name in _MODEL_FILES]
+    from platesynth.data.layout import is_item_name
+
+    files = [directory / name for name in ("manifest.json", "counts.csv", "annotations.coco.json")]
+    if kind == "demo":
+        files.append(directory / "preview.png")
+    for folder_name, suffix in _ITEM_SUFFIXES.items():
+        folder = directory / folder_name
+        if folder.is_dir():
+            files += [
+                path
+                for path in folder.iterdir()
+                if path.is_file() and path.suffix == suffix and (kind == "prediction" or is_item_name(path.stem))
+            ]
+    for folder in (directory, *(directory / name for name in _ITEM_SUFFIXES)):
+        if folder.is_dir():
+            files += [p for p in folder.iterdir() if p.is_file() and p.name.startswith(".") and ".tmp" in p.name]
+    return files
+
+
+def remove_output_files(
+    directory: str | os.PathLike, kind: str, keep: Iterable[str | os.PathLike | None] = ()
+) -> None:
+    """Delete the files an output of ``kind`` consists of from ``directory``, and nothing else; files in ``keep``
+    (or inside a folder in ``keep``: a command's inputs) stay. Folders of the layout left empty are removed."""
     directory = Path(directory)
-    if kind in ("dataset", "demo"):
-        from platesynth.data.writer import remove_dataset_files
-
-        remove_dataset_files(directory)
-        if kind == "demo":
-            (directory / "preview.png").unlink(missing_ok=True)
-    elif kind == "prediction":
-        from platesynth.data.layout import ITEM_DIRS
-        from platesynth.data.writer import remove_temporary_files
-
-        remove_temporary_files(directory)
-        (directory / "counts.csv").unlink(missing_ok=True)
-        for name, suffix in zip(ITEM_DIRS, (".png", ".tif", ".tif", ".json")):
-            folder = directory / name
-            if folder.is_dir():
-                for path in folder.iterdir():
-                    if path.is_file() and path.suffix == suffix:
-                        path.unlink()
-        for name in (*ITEM_DIRS, "masks"):
-            with contextlib.suppress(OSError):
-                (directory / name).rmdir()  # only where empty
-    elif kind == "model":
-        for name in _MODEL_FILES:
-            (directory / name).unlink(missing_ok=True)
+    kept = [_resolved(path) for path in keep if path is not None]
+    for path in _files_of(directory, kind):
+        if path.is_file() and not any(_inside(_resolved(path), folder) for folder in kept):
+            path.unlink()
+    for name in (*_ITEM_SUFFIXES, "masks"):
+        with contextlib.suppress(OSError):
+            (directory / name).rmdir()  # only where empty
     (directory / MARKER_NAME).unlink(missing_ok=True)
 
 
