@@ -77,7 +77,8 @@ def error_message(exc: BaseException) -> str:
     if isinstance(exc, RecursionError):
         return f"{prefix}input nested too deeply"
     if isinstance(exc, DECODE_ERRORS):
-        return f"{prefix}cannot decode the file, truncated or corrupt ({type(exc).__name__}: {exc})"
+        name = type(exc).__name__ if type(exc).__name__ != "error" else f"{type(exc).__module__}.error"  # zlib.error
+        return f"{prefix}cannot decode the file, truncated or corrupt ({name}: {exc})"
     return f"{prefix}{type(exc).__name__}: {exc}"
 
 
