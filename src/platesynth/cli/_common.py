@@ -83,7 +83,10 @@ def error_message(exc: BaseException) -> str:
 
 
 def fail(exc: BaseException) -> NoReturn:
-    """Print ``exc`` as one line on stderr and exit with code 1."""
+    """Print ``exc`` as one line on stderr and exit with code 1 (a closed stdout, e.g. ``| head``, is left to click,
+    which exits quietly)."""
+    if isinstance(exc, BrokenPipeError):
+        raise exc
     message = " ".join(error_message(exc).split())  # one line, whatever the exception held
     console.print(styled("error:", "bold red", message), highlight=False, soft_wrap=True)
     raise typer.Exit(code=1)
