@@ -237,7 +237,7 @@ def unfinished_message(model_dir: str | Path) -> str:
     epochs = settings.get("train", {}).get("epochs") if isinstance(settings, dict) else None
     done = len(history) if isinstance(history, list) else 0
     if isinstance(epochs, int) and done >= epochs:
-        where = f"stopped after its {epochs} epochs, before its thresholds were tuned and the model was completed"
+        where = f"stopped after epoch {epochs} of {epochs}, while tuning its thresholds"
     elif isinstance(epochs, int):
         where = f"stopped during epoch {done + 1} of {epochs}"
     else:
