@@ -531,11 +531,11 @@ class _ConfigLoader(yaml.SafeLoader):
         event = self.peek_event()
         if isinstance(event, yaml.AliasEvent):
             raise yaml.composer.ComposerError(
-                None, None, f"alias *{event.anchor}: anchors and aliases are not allowed (write the values out)", event.start_mark
+                None, None, f"alias *{event.anchor}: anchors and aliases are not allowed, write the values out", event.start_mark
             )
         if getattr(event, "anchor", None) is not None:
             raise yaml.composer.ComposerError(
-                None, None, f"anchor &{event.anchor}: anchors and aliases are not allowed (write the values out)", event.start_mark
+                None, None, f"anchor &{event.anchor}: anchors and aliases are not allowed, write the values out", event.start_mark
             )
         self._depth += 1
         try:
@@ -551,7 +551,7 @@ class _ConfigLoader(yaml.SafeLoader):
 def _one_line(exc: BaseException) -> str:
     if isinstance(exc, yaml.MarkedYAMLError):
         mark = exc.problem_mark or exc.context_mark
-        where = f" (line {mark.line + 1}, column {mark.column + 1})" if mark is not None else ""
+        where = f"; line {mark.line + 1}, column {mark.column + 1}" if mark is not None else ""
         return f"{exc.problem or exc.context or 'invalid YAML'}{where}"
     text = str(exc).strip().splitlines()
     return text[0] if text else exc.__class__.__name__
