@@ -76,7 +76,9 @@ def pair_command(
             real, synthetic, lpips=not no_lpips, frechet=not no_frechet, resize=resize, progress=progress
         )
     if json_output:
-        print_json(result)
+        from platesynth.schemas import PairMetrics, dump, from_result
+
+        print_json(dump(from_result(PairMetrics, result)))
     else:
         print_table(result, title=f"{synthetic} vs {real}")
 
@@ -139,7 +141,9 @@ def dataset_command(
                              progress=progress)
             )
     if json_output:
-        print_json(result)
+        from platesynth.schemas import DatasetMetrics, dump, from_result
+
+        print_json(dump(from_result(DatasetMetrics, result)))
         return
     height, width = result.pop("size")
     rows = {key: value for key, value in result.items() if not isinstance(value, list)}  # spectra: --json only

@@ -59,7 +59,9 @@ def _render_with_progress(directory: Path, manifest: Manifest, executor: Any, ov
 
 def _report(summary: BatchSummary, as_json: bool) -> None:
     if as_json:
-        print_json(summary.to_dict())
+        from platesynth.schemas import RenderSummary, dump, from_result
+
+        print_json(dump(from_result(RenderSummary, summary.to_dict())))
     console.print(
         f"{summary.rendered} rendered, {summary.skipped} already there, {len(summary.failed)} failed "
         f"in {summary.seconds:.1f} s -> {summary.directory}",

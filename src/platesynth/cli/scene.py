@@ -27,12 +27,14 @@ def _range_text(row: dict) -> str:
 @user_errors
 def catalogue(as_json: Annotated[bool, typer.Option("--json", help="Print JSON instead of a table.")] = False) -> None:
     """The parameter catalogue: every scene parameter's name, type, unit, valid range, default and description."""
-    from platesynth.scene import parameter_table
+    from platesynth.schemas import catalogue as read_catalogue
+    from platesynth.schemas import dump
 
-    rows = parameter_table()
+    parameters = read_catalogue().parameters
     if as_json:
-        print_json(rows)
+        print_json([dump(row) for row in parameters])
         return
+    rows = [row.model_dump() for row in parameters]
     table = Table(title="scene parameters (YAML: section: {parameter: value})")
     for column in ("name", "type", "unit", "range", "default", "description"):
         table.add_column(column, overflow="fold")
@@ -47,17 +49,15 @@ def catalogue(as_json: Annotated[bool, typer.Option("--json", help="Print JSON i
 @user_errors
 def presets(as_json: Annotated[bool, typer.Option("--json", help="Print JSON instead of text.")] = False) -> None:
     """List the shipped presets with their first comment line."""
-    from platesynth.scene.loading import PRESET_DIR, list_presets
+    from platesynth.schemas import dump
+    from platesynth.schemas import presets as read_presets
 
-    rows = []
-    for name in list_presets():
-        first = (PRESET_DIR / f"{name}.yaml").read_text().splitlines()[0].lstrip("# ").strip()
-        rows.append({"name": name, "description": first, "path": str(PRESET_DIR / f"{name}.yaml")})
+    rows = read_presets().presets
     if as_json:
-        print_json(rows)
+        print_json([dump(row) for row in rows])
         return
     for row in rows:
-        typer.echo(f"{row['name']:12s} {row['description']}")
+        typer.echo(f"{row.name:12s} {row.description}")
 
 
 @app.command("show")

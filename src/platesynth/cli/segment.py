@@ -163,15 +163,10 @@ def train_command(
         summary = train(
             config, out, network_config, overwrite=overwrite, device=device, progress=progress, before_writing=claim.take
         )
-    result = {
-        "model_dir": str(summary.model_dir),
-        "epochs": summary.epochs_done,
-        "resumed_from_epoch": summary.resumed_from_epoch,
-        "best_val_loss": summary.best_val_loss,
-        "thresholds": {name: {"prob": p, "nms": n} for name, (p, n) in summary.thresholds.items()},
-    }
     if as_json:
-        print_json(result)
+        from platesynth.schemas import dump, train_result
+
+        print_json(dump(train_result(summary)))
     else:
         resumed = f", resumed after epoch {summary.resumed_from_epoch}" if summary.resumed_from_epoch else ""
         message = f"model written to {summary.model_dir} (best validation loss {summary.best_val_loss:.4f}{resumed})"
@@ -295,7 +290,9 @@ def evaluate_masks_command(
     predictor = functools.partial(predict_image, network, thresholds=thresholds)
     report = _with_progress("evaluating", lambda progress: evaluate_masks(predictor, data, taus, progress))
     if as_json:
-        print_json(report)
+        from platesynth.schemas import MaskReport, dump, from_result
+
+        print_json(dump(from_result(MaskReport, report)))
     else:
         _print_masks(report)
 
@@ -338,7 +335,9 @@ def evaluate_counts_command(
         columns = TABLE_COLUMNS
         write_count_table(table, [tuple("" if w[c] is None else w[c] for c in columns) for w in report["wells"]], columns)
     if as_json:
-        print_json(report)
+        from platesynth.schemas import CountReport, dump, from_result
+
+        print_json(dump(from_result(CountReport, report)))
         return
     print_count_summary(report, title="plaques per well")
 
