@@ -43,6 +43,7 @@ FOLDER_KINDS = {
     "demo": "a demo folder",
     "prediction": "a prediction folder",
     "model": "a model directory",
+    "optimisation": "an optimisation run",
 }
 FILE_KINDS = {
     "preview": "a contact sheet",
@@ -92,8 +93,9 @@ def folder_kind(directory: str | os.PathLike) -> str | None:
     did not write, or a file), or ``None`` (missing or empty).
 
     The marker decides; without one (folders written before it existed, or by the library functions) the files do:
-    ``manifest.json`` a dataset (a demo folder with ``preview.png``), ``train.json``, ``checkpoint.pt`` or
-    ``weights.pt`` with ``config.json`` a model, params naming their ``source`` image a prediction.
+    ``manifest.json`` a dataset (a demo folder with ``preview.png``), ``optimise.json`` an optimisation run,
+    ``train.json``, ``checkpoint.pt`` or ``weights.pt`` with ``config.json`` a model, params naming their ``source``
+    image a prediction.
     """
     directory = Path(directory)
     if not directory.exists():
@@ -107,6 +109,8 @@ def folder_kind(directory: str | os.PathLike) -> str | None:
         return None
     if "manifest.json" in names:
         return "demo" if "preview.png" in names else "dataset"
+    if "optimise.json" in names:
+        return "optimisation"
     if {"train.json", "checkpoint.pt"} & names or {"weights.pt", "config.json"} <= names:
         return "model"
     if _is_prediction(directory):
@@ -293,6 +297,11 @@ def _files_of(directory: Path, kind: str) -> list[Path]:
     """The files an output of ``kind`` in ``directory`` consists of (those there), temporary files included."""
     if kind == "model":
         return [directory / name for name in _MODEL_FILES]
+    if kind == "optimisation":
+        from platesynth.optimise.report import OUTPUT_FILES
+
+        temporary = [p for p in directory.iterdir() if p.is_file() and p.name.startswith(".") and ".tmp" in p.name]
+        return [directory / name for name in OUTPUT_FILES] + temporary
     from platesynth.data.layout import is_item_name
 
     files = [directory / name for name in ("manifest.json", "counts.csv", "annotations.coco.json")]

@@ -92,14 +92,33 @@ def _merge(base: dict[str, Any], update: dict[str, Any]) -> dict[str, Any]:
     return merged
 
 
+def check_parameter_name(dotted: str, source: str = "override") -> None:
+    """Refuse a dotted name that is not a catalogue parameter, with the message ``--set`` gives.
+
+    Parameters
+    ----------
+    dotted : str
+        E.g. ``"plaques.radius_mm"``.
+    source : str
+        What named it, the start of the message (``"override"`` for ``--set``, a file name for a search space).
+
+    Raises
+    ------
+    ParameterError
+        ``override plaques.radius: unknown parameter (did you mean plaques.radius_mm?)``.
+    """
+    names = parameter_names()
+    if dotted not in names:
+        guess = difflib.get_close_matches(str(dotted), names, n=1)
+        hint = f" (did you mean {guess[0]}?)" if guess else " (see `platesynth scene catalogue`)"
+        raise ParameterError(f"{source} {dotted}: unknown parameter{hint}")
+
+
 def _apply_overrides(data: dict[str, Any], overrides: dict[str, Any]) -> dict[str, Any]:
     data = {k: dict(v) if isinstance(v, dict) else v for k, v in data.items()}
-    names = parameter_names()
     for dotted, value in overrides.items():
-        if dotted not in names and dotted != "name":
-            guess = difflib.get_close_matches(dotted, names, n=1)
-            hint = f" (did you mean {guess[0]}?)" if guess else " (see `platesynth scene catalogue`)"
-            raise ParameterError(f"override {dotted}: unknown parameter{hint}")
+        if dotted != "name":
+            check_parameter_name(dotted)
         if dotted == "name":
             data["name"] = value
             continue
