@@ -113,8 +113,9 @@ def _overlap(a: Path, b: Path) -> bool:
 class JobManager:
     """The jobs of one server: at most ``limits.max_jobs`` running at once, none writing where another writes."""
 
-    def __init__(self, limits: Limits, describe_error: Callable[[BaseException], str]) -> None:
+    def __init__(self, limits: Limits, describe_error: Callable[[BaseException], str], root: Path) -> None:
         self.limits = limits
+        self.root = root
         self.describe_error = describe_error
         self._jobs: dict[str, Job] = {}
         self._lock = threading.Lock()
@@ -165,7 +166,7 @@ class JobManager:
             job.error += "; what it wrote is kept, and starting the same job again resumes it"
         except BaseException as exc:  # noqa: BLE001 -- any failure ends the job with one line
             job.state = "failed"
-            job.error = " ".join(self.describe_error(exc).split())
+            job.error = " ".join(self.describe_error(exc).split()).replace(f"{self.root}/", "")
             logger.debug("job %s failed", job.job_id, exc_info=True)
         else:
             job.result = result

@@ -184,6 +184,7 @@ class PlatesynthServer(MCPServer):
     """:class:`MCPServer` whose tool errors are one line, whatever failed (arguments, guardrails, the library)."""
 
     jobs: JobManager
+    workspace: Workspace
     discover_resources: Callable[[], list[tuple[str, str]]]
 
     async def list_resources(self) -> list[types.Resource]:
@@ -193,6 +194,10 @@ class PlatesynthServer(MCPServer):
             listed.append(types.Resource(uri=f"platesynth://{kind}/{path}", name=f"{kind}: {path}",
                                          mime_type="application/json"))
         return listed
+
+    def _message(self, text: str) -> str:
+        """One line, with the workspace's paths relative to it (as the client named them)."""
+        return _one_line(text).replace(f"{self.workspace.root}/", "")
 
     async def call_tool(self, name: str, arguments: dict[str, Any], context: Any = None) -> Any:
         try:
@@ -205,8 +210,8 @@ class PlatesynthServer(MCPServer):
             if isinstance(cause, ValidationError):
                 raise ToolError(_validation_line(name, cause)) from None
             if isinstance(cause, ToolError):
-                raise ToolError(_one_line(str(cause))) from None
-            raise ToolError(_one_line(str(exc))) from None
+                raise ToolError(self._message(str(cause))) from None
+            raise ToolError(self._message(str(exc))) from None
 
 
 def _describe(exc: BaseException) -> str:
@@ -239,8 +244,9 @@ def build_server(workspace: Workspace, limits: Limits | None = None) -> Platesyn
         SERVER_NAME, version=__version__, instructions=INSTRUCTIONS, log_level="WARNING",
         warn_on_duplicate_tools=True,
     )
-    jobs = JobManager(limits, _describe)
+    jobs = JobManager(limits, _describe, workspace.root)
     server.jobs = jobs
+    server.workspace = workspace
     tool = server.tool
     read = functools.partial(workspace.resolve, write=False)
     write = functools.partial(workspace.resolve, write=True)
@@ -417,11 +423,10 @@ def build_server(workspace: Workspace, limits: Limits | None = None) -> Platesyn
 
     # --------------------------------------------------------------------------------------------------- metrics
 
-    def save_report(save_as: str | None, tool_name: str, arguments: dict[str, Any], result: BaseModel) -> None:
-        from platesynth.io import write_json
-
+    def report_target(save_as: str | None) -> Path | None:
+        """Check a ``save_as`` before computing anything."""
         if save_as is None:
-            return
+            return None
         target = write(save_as, what="save_as")
         if target.suffix.lower() != ".json":
             raise ParameterError(f"save_as {save_as!r}: a report is a JSON file; give a name ending in .json")
@@ -432,6 +437,13 @@ def build_server(workspace: Workspace, limits: Limits | None = None) -> Platesyn
                 existing = None
             if not (isinstance(existing, dict) and "platesynth_report" in existing):
                 raise ParameterError(f"save_as {save_as!r}: exists and is not a platesynth report; choose another name")
+        return target
+
+    def save_report(target: Path | None, tool_name: str, arguments: dict[str, Any], result: BaseModel) -> None:
+        from platesynth.io import write_json
+
+        if target is None:
+            return
         report = SavedReport(platesynth_report=tool_name, platesynth_version=__version__, arguments=arguments,
                              result=dump(result))
         write_json(target, report.model_dump(mode="json"))
@@ -456,19 +468,20 @@ def build_server(workspace: Workspace, limits: Limits | None = None) -> Platesyn
         lpips: Annotated[bool, Field(description="LPIPS distance (needs the AlexNet weights)")] = False,
         frechet: Annotated[bool, Field(description="patch Fréchet distances (needs the AlexNet weights)")] = False,
         save_as: SaveAs = None,
-    ) -> PairMetrics:
+    ) -> Annotated[types.CallToolResult, PairMetrics]:
         """Pair metrics of a synthetic image against a real photo: MSE, NRMSE, SSIM, PSNR, naturalness (Nf, dNf),
         optionally LPIPS and patch Fréchet distances. Lower dNf/LPIPS/FD and higher SSIM are closer."""
         from platesynth.metrics import compare_pair
 
+        target = report_target(save_as)
         result = from_result(
             PairMetrics,
             compare_pair(read(real, what="real"), read(synthetic, what="synthetic"), lpips=lpips, frechet=frechet,
                          resize=resize),
         )
-        save_report(save_as, "compare_images", {"real": real, "synthetic": synthetic, "resize": resize,
+        save_report(target, "compare_images", {"real": real, "synthetic": synthetic, "resize": resize,
                                                  "lpips": lpips, "frechet": frechet}, result)
-        return result
+        return _structured(result)
 
     @tool(annotations=types.ToolAnnotations(read_only_hint=False, destructive_hint=False))
     @_library_errors
@@ -483,7 +496,7 @@ def build_server(workspace: Workspace, limits: Limits | None = None) -> Platesyn
         well_size: Annotated[int, Field(ge=31, le=512, description="side of the well crops, pixels")] = 128,
         well_grid: Annotated[tuple[int, int], Field(description="[rows, columns] of plates without masks")] = (3, 4),
         save_as: SaveAs = None,
-    ) -> DatasetMetrics:
+    ) -> Annotated[types.CallToolResult, DatasetMetrics]:
         """Diversity (pixel entropy, brightness variability) and naturalness of a folder of images; with a reference
         also dNf (and Fréchet/KID); with `wells` the well-crop realism metrics."""
         from platesynth.data.layout import IMAGES_DIR
@@ -494,21 +507,25 @@ def build_server(workspace: Workspace, limits: Limits | None = None) -> Platesyn
             raise ParameterError("wells needs a reference (the real plates to compare the wells with)")
         folder = read(directory, what="directory")
         reference_path = read(reference, what="reference") if reference else None
+        target = report_target(save_as)
         count_images(folder, "directory")
         if reference_path is not None:
             count_images(reference_path, "reference")
-        root = find_dataset_root(folder)
-        images = root / IMAGES_DIR if root is not None else folder
-        result = compute(images, reference_path, size=(size[1], size[0]) if size else None, frechet=frechet)
+        def images_of(path: Path | None) -> Path | None:  # a dataset's images/ folder, else the folder itself
+            root = find_dataset_root(path) if path is not None else None
+            return root / IMAGES_DIR if root is not None else path
+
+        result = compute(images_of(folder), images_of(reference_path), size=(size[1], size[0]) if size else None,
+                         frechet=frechet)
         if wells:
             grid = (int(well_grid[0]), int(well_grid[1]))
             result.update(well_metrics(folder, reference_path, size=well_size, grid=grid, frechet=frechet))
         metrics = from_result(DatasetMetrics, result)
-        save_report(save_as, "dataset_metrics", {"directory": directory, "reference": reference,
+        save_report(target, "dataset_metrics", {"directory": directory, "reference": reference,
                                                   "size": list(size) if size else None, "frechet": frechet,
                                                   "wells": wells, "well_size": well_size,
                                                   "well_grid": list(well_grid)}, metrics)
-        return metrics
+        return _structured(metrics)
 
     # ---------------------------------------------------------------------------------------------- segmentation
 
@@ -638,7 +655,7 @@ def build_server(workspace: Workspace, limits: Limits | None = None) -> Platesyn
         tau: Annotated[list[float], Field(min_length=1, description="IoU thresholds in (0, 1]")] = [0.5],  # noqa: B006
         device: Device = "auto",
         save_as: SaveAs = None,
-    ) -> MaskReport:
+    ) -> Annotated[types.CallToolResult, MaskReport]:
         """Instance masks against the truth, per class (wells, plaques): AP and IoU_R at each tau, over images."""
         from platesynth.data.layout import list_items
         from platesynth.segment.matching import evaluate_masks as evaluate
@@ -647,12 +664,13 @@ def build_server(workspace: Workspace, limits: Limits | None = None) -> Platesyn
         if any(not 0 < t <= 1 for t in tau):
             raise ParameterError(f"tau must be in (0, 1], got {', '.join(map(str, tau))}")
         folder = read(data, what="data")
+        target = report_target(save_as)
         limits.check_images(len(list_items(folder)), "data")
         network, thresholds, _ = load_network(model, device)
         predictor = functools.partial(predict_image, network, thresholds=thresholds)
         report = from_result(MaskReport, evaluate(predictor, folder, tuple(tau)))
-        save_report(save_as, "evaluate_masks", {"model": model, "data": data, "tau": tau}, report)
-        return report
+        save_report(target, "evaluate_masks", {"model": model, "data": data, "tau": tau}, report)
+        return _structured(report)
 
     @tool(annotations=types.ToolAnnotations(read_only_hint=False, destructive_hint=False))
     @_library_errors
@@ -664,7 +682,7 @@ def build_server(workspace: Workspace, limits: Limits | None = None) -> Platesyn
         from_below: bool = True,
         device: Device = "auto",
         save_as: SaveAs = None,
-    ) -> CountReport:
+    ) -> Annotated[types.CallToolResult, CountReport]:
         """Predicted plaques per well against a person's counts: MAE, RMSE, Pearson r, bias, the training-mean
         baseline, and how well uncountable wells are found."""
         import math
@@ -674,6 +692,7 @@ def build_server(workspace: Workspace, limits: Limits | None = None) -> Platesyn
 
         folder = read(images, what="images")
         table = read(counts, what="counts")
+        target = report_target(save_as)
         count_images(folder, "images")
         network, thresholds, _ = load_network(model, device)
         plate_format = plate or network.config.plate_format
@@ -682,9 +701,9 @@ def build_server(workspace: Workspace, limits: Limits | None = None) -> Platesyn
         baseline = network.config.training.get("mean_plaques_per_well")
         baseline = baseline if isinstance(baseline, (int, float)) and math.isfinite(baseline) else None
         report = from_result(CountReport, evaluate(predictor, folder, table, plate_format, baseline))
-        save_report(save_as, "evaluate_counts", {"model": model, "images": images, "counts": counts,
+        save_report(target, "evaluate_counts", {"model": model, "images": images, "counts": counts,
                                                   "plate": plate, "from_below": from_below}, report)
-        return report
+        return _structured(report)
 
     # ------------------------------------------------------------------------------------------------------ jobs
 
@@ -894,6 +913,12 @@ def build_server(workspace: Workspace, limits: Limits | None = None) -> Platesyn
 
     server.discover_resources = discover_resources
     return server
+
+
+def _structured(model: BaseModel) -> types.CallToolResult:
+    """A tool result holding ``model`` as the command line's ``--json`` prints it (metrics not computed left out)."""
+    data = dump(model)
+    return types.CallToolResult(content=[types.TextContent(type="text", text=json.dumps(data))], structured_content=data)
 
 
 def _guarded(fn: Callable[[], Any]) -> Any:

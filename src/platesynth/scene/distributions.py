@@ -31,6 +31,44 @@ from pydantic import BaseModel, ConfigDict, Field, model_serializer, model_valid
 _DIST_KINDS = ("uniform", "loguniform", "normal", "integers", "choice", "mixture")
 
 
+_NUMBERS: dict[str, Any] = {"type": "array", "items": {"type": "number"}, "minItems": 1}
+DIST_JSON_SCHEMA: dict[str, Any] = {
+    "title": "Dist",
+    "description": "a number; [low, high] (uniform); or one of {loguniform: [low, high]}, {normal: [mean, sd]}, "
+    "{integers: [low, high]}, {choice: [a, b, ...], weights: [...]}, {mixture: [[low, high], ...], weights: [...]}",
+    "anyOf": [
+        {"type": "number"},
+        {"type": "array", "items": {"type": "number"}, "minItems": 2, "maxItems": 2},
+        {
+            "type": "object",
+            "properties": {
+                **{kind: _NUMBERS for kind in ("loguniform", "normal", "integers", "choice")},
+                "mixture": {"type": "array", "items": {"type": "array", "items": {"type": "number"}, "minItems": 2,
+                                                       "maxItems": 2}},
+                "weights": _NUMBERS,
+                "kind": {"enum": ["const", *_DIST_KINDS]},
+                "values": _NUMBERS,
+            },
+            "minProperties": 1,
+            "additionalProperties": False,
+        },
+    ],
+}
+"""The JSON schema of a :class:`Dist` as configurations write it and :meth:`Dist.model_dump` returns it."""
+DIST_VECTOR_JSON_SCHEMA: dict[str, Any] = {
+    "title": "DistVector",
+    "description": "one Dist per component, e.g. [[0.3, 0.7], [0.2, 0.6], 0.5] for R, G and B",
+    "type": "array",
+    "items": DIST_JSON_SCHEMA,
+    "minItems": 1,
+}
+CATEGORICAL_JSON_SCHEMA: dict[str, Any] = {
+    "title": "Categorical",
+    "description": "a name, or a mapping {name: weight >= 0}",
+    "anyOf": [{"type": "string"}, {"type": "object", "additionalProperties": {"type": "number", "minimum": 0}}],
+}
+
+
 def _is_number(value: Any) -> bool:
     return isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, bool)
 
@@ -50,6 +88,10 @@ class Dist(BaseModel):
     """
 
     model_config = ConfigDict(frozen=True, extra="forbid")
+
+    @classmethod
+    def __get_pydantic_json_schema__(cls, core_schema: Any, handler: Any) -> dict[str, Any]:
+        return dict(DIST_JSON_SCHEMA)
 
     kind: Literal["const", "uniform", "loguniform", "normal", "integers", "choice", "mixture"]
     values: tuple[float, ...]  # mixture: low, high of each range in turn
@@ -178,6 +220,10 @@ class DistVector(BaseModel):
 
     model_config = ConfigDict(frozen=True, extra="forbid")
 
+    @classmethod
+    def __get_pydantic_json_schema__(cls, core_schema: Any, handler: Any) -> dict[str, Any]:
+        return dict(DIST_VECTOR_JSON_SCHEMA)
+
     components: tuple[Dist, ...]
 
     @model_validator(mode="before")
@@ -213,6 +259,10 @@ class Categorical(BaseModel):
     """
 
     model_config = ConfigDict(frozen=True, extra="forbid")
+
+    @classmethod
+    def __get_pydantic_json_schema__(cls, core_schema: Any, handler: Any) -> dict[str, Any]:
+        return dict(CATEGORICAL_JSON_SCHEMA)
 
     weights: dict[str, float]
 
