@@ -33,7 +33,7 @@ from platesynth.schemas import Catalogue, DatasetMetrics, PairMetrics, Presets  
 TOOLS = {
     "presets", "catalogue", "scene_config", "sample_scene", "preview", "render", "compare_images", "dataset_metrics",
     "train", "predict", "evaluate_masks", "evaluate_counts", "job_status", "job_wait", "job_cancel", "jobs",
-    "list_files", "read_result",
+    "list_files", "read_result", "optimise",
 }
 TINY_NETWORK = {"channels": [8, 12, 16], "context_dilations": [2], "input_long_side": 128}
 SMALL = {"preset": "high", "size": [128, 96]}
@@ -94,6 +94,7 @@ def test_tools_are_listed_with_the_models_schemas(tmp_path):
         assert listed["dataset_metrics"].output_schema == DatasetMetrics.model_json_schema()
         assert listed["render"].output_schema == JobStatus.model_json_schema()
         assert listed["train"].output_schema == JobStatus.model_json_schema()
+        assert listed["optimise"].output_schema == JobStatus.model_json_schema()
         assert "network" in listed["train"].input_schema["properties"]  # the library's ModelConfig
         assert listed["render"].input_schema["required"] == ["out", "count"]
         assert listed["presets"].annotations.read_only_hint is True
@@ -290,6 +291,42 @@ def test_job_time_limit_of_the_server(tmp_path):
         assert status["state"] == "timed_out" and "--max-job-seconds" in status["error"]
 
     call_sync(tmp_path, steps, limits=Limits(max_job_seconds=0.3))
+
+
+def test_optimise_job_and_its_best_configuration(tmp_path, monkeypatch, one_torch_thread):
+    """A tiny optimisation over two trials against shared photos read from a read-only root (skipped without them)."""
+    from conftest import shared_path
+
+    plates = shared_path("data", "plaque12", "plates")
+    weights = shared_path("weights", "alexnet_features-7be5be79.pth")
+    monkeypatch.setenv("PLATESYNTH_WEIGHTS_DIR", str(weights.parent))
+    monkeypatch.setenv("PLATESYNTH_OFFLINE", "1")
+    monkeypatch.setenv("TORCH_HOME", str(tmp_path / "torch-home"))
+    photos = tmp_path / "photos"
+    photos.mkdir()
+    for name in ("Brisbane_plate2.jpg", "Brisbane_plate3.jpg", "PR8_plate1.jpg", "PR8_plate2.jpg"):
+        with Image.open(plates / name) as image:
+            image.convert("RGB").resize((152, 118)).save(photos / f"{name[:-4]}.png")
+
+    async def steps(client, workspace):
+        job = ok(await client.call_tool("optimise", {
+            "reference": str(photos), "out": "opt", "trials": 2, "preset": "low", "count": 2, "size": [128, 100],
+            "eval_count": 2, "seed": 5, "weights": {"fid_inception": 0},
+        }))
+        assert job["kind"] == "optimise" and job["arguments"]["trials"] == 2
+        status = await wait(client, job, timeout=300)
+        result = status["result"]
+        assert result["out"] == "opt" and result["best_config"] == "opt/best.yaml" and result["n_trials"] == 2
+        assert set(result["evaluation"]) == {"fit", "check"} and result["start"] == "low"
+        assert {"start", "best"} <= set(result["evaluation"]["check"])
+        assert (workspace.root / "opt" / "report.json").is_file()
+        # the best configuration feeds the other tools
+        ok(await client.call_tool("preview", {"config": result["best_config"], "count": 1, "size": [128, 100]}))
+        report = json.loads((await client.read_resource("platesynth://report/opt")).contents[0].text)
+        assert report["best_trial"] == result["best_trial"]
+        refused(await client.call_tool("optimise", {"reference": "../photos", "out": "o2", "trials": 1}), "'..'")
+
+    call_sync(tmp_path, steps, read_only=(photos,))
 
 
 # ------------------------------------------------------------------------------------------------ guardrails

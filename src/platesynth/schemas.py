@@ -123,6 +123,39 @@ class RenderSummary(_Strict):
     seconds: float
 
 
+# ------------------------------------------------------------------------------------------------------ optimise
+
+
+class OptimiseSummary(_Open):
+    """What an optimisation found (the result of an optimise job; its folder's ``report.json`` and more)."""
+
+    out: str = Field(description="the optimisation's folder (study, trials, report.md, best.yaml, plots)")
+    best_config: str | None = Field(description="the best configuration's YAML file, for `config` of the other tools")
+    notes: list[str] = Field(description="what was left out (plots with too few trials, metrics without weights)")
+    start: str = Field(description="the start configuration")
+    best_trial: int
+    best_params: dict[str, Any] = Field(description="the best trial's parameter values")
+    n_trials: int
+    n_complete: int
+    n_failed: int
+    pareto_trials: list[int] = Field(default_factory=list)
+    objectives: list[str] | None = None
+    weights: dict[str, float]
+    split: dict[str, list[str]] = Field(description="the reference photos of the fit and check parts")
+    evaluation: dict[str, Any] = Field(
+        description="per part of the photos (fit, check), per configuration (start, best, compared): the terms"
+    )
+    importances: dict[str, float] = Field(default_factory=dict)
+    eval_count: int
+    seconds: float
+
+
+def optimise_summary(result: Any, out: str, best_config: str | None) -> OptimiseSummary:
+    """An :class:`~platesynth.optimise.OptimiseResult` as an :class:`OptimiseSummary` (paths as given)."""
+    return from_result(OptimiseSummary, {**result.report, "out": out, "best_config": best_config,
+                                         "notes": list(result.notes)})
+
+
 # ------------------------------------------------------------------------------------------------------- metrics
 
 

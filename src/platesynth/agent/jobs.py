@@ -21,7 +21,7 @@ from typing import Any, Literal
 from pydantic import BaseModel, Field
 
 from platesynth.agent.workspace import GuardrailError, Limits
-from platesynth.schemas import RenderSummary, TrainResult
+from platesynth.schemas import OptimiseSummary, RenderSummary, TrainResult
 
 logger = logging.getLogger(__name__)
 
@@ -38,17 +38,19 @@ class JobStatus(BaseModel):
     """Where a job stands (the tools ``job_status``, ``job_wait``, ``job_cancel`` and ``jobs`` return it)."""
 
     job_id: str
-    kind: str = Field(description="render or train")
+    kind: str = Field(description="render, train or optimise")
     state: State = Field(description="running, then succeeded, failed, cancelled or timed_out")
     output: str = Field(description="the folder the job writes, relative to the workspace")
-    done: int = Field(description="images rendered or optimiser steps taken so far")
-    total: int | None = Field(description="images or steps in all")
+    done: int = Field(description="images rendered, optimiser steps taken or trials finished so far")
+    total: int | None = Field(description="images, steps or trials in all (of the current stage)")
     message: str = Field(description="the latest progress message")
     seconds: float = Field(description="seconds since the job started (until it ended)")
     time_limit_seconds: float
     cancel_requested: bool = False
     arguments: dict[str, Any] = Field(description="the arguments the job was started with (its provenance)")
-    result: RenderSummary | TrainResult | None = Field(None, description="the job's result once it succeeded")
+    result: RenderSummary | TrainResult | OptimiseSummary | None = Field(
+        None, description="the job's result once it succeeded"
+    )
     error: str | None = Field(None, description="one line, once it failed, was cancelled or timed out")
 
 

@@ -129,7 +129,9 @@ class FileEntry(BaseModel):
 
     path: str
     type: Literal["file", "folder"]
-    kind: str | None = Field(None, description="what platesynth wrote there: dataset, model, prediction, demo, report")
+    kind: str | None = Field(
+        None, description="what platesynth wrote there: dataset, demo, prediction, model, optimisation, report"
+    )
     bytes: int | None = None
 
 
@@ -165,6 +167,8 @@ _TEXT_TYPES = {".json": "application/json", ".csv": "text/csv", ".yaml": "applic
                ".md": "text/markdown", ".txt": "text/plain", ".log": "text/plain"}
 _IMAGE_TYPES = {".png": "image/png", ".jpg": "image/jpeg", ".jpeg": "image/jpeg"}
 _SKIPPED_FOLDERS = {"images", "masks", "params", "__pycache__"}
+RESOURCE_KINDS = {"dataset": {"dataset", "prediction"}, "model": {"model"}, "report": {"report", "optimisation"}}
+"""What each resource kind lists: folder kinds of :func:`platesynth.outputs.folder_kind`, and saved reports."""
 
 
 def _one_line(text: str) -> str:
@@ -420,6 +424,85 @@ def build_server(workspace: Workspace, limits: Limits | None = None) -> Platesyn
             return from_result(RenderSummary, result)
 
         return jobs.start("render", target, workspace.relative(target), arguments, work, time_limit_seconds)
+
+    # ------------------------------------------------------------------------------------------------- optimise
+
+    @tool(annotations=types.ToolAnnotations(read_only_hint=False, destructive_hint=False, idempotent_hint=True))
+    @_library_errors
+    def optimise(
+        reference: Annotated[str, Field(description="a folder of real plate photos (split by plate into fit and check)")],
+        out: Annotated[str, Field(description="the optimisation's folder; the same request again resumes it")],
+        trials: Annotated[int, Field(ge=1, description="finished trials the study should hold")],
+        preset: PresetName = None,
+        config: ConfigPath = None,
+        overrides: Overrides = None,
+        space: Annotated[
+            str | None, Field(description="a YAML search space in the workspace (default: the look's parameters)")
+        ] = None,
+        narrow: Annotated[float | None, Field(gt=0, description="half-width of the default ranges, share of each valid range")] = None,
+        seed: Seed = 0,
+        count: Annotated[int | None, Field(ge=1, description="images per trial")] = None,
+        size: Annotated[tuple[int, int] | None, Field(description="render size [width, height]")] = None,
+        compare_size: Annotated[tuple[int, int] | None, Field(description="size renders and photos are measured at")] = None,
+        eval_count: Annotated[int | None, Field(ge=1, description="images of the final evaluation")] = None,
+        check_fraction: Annotated[float | None, Field(gt=0, lt=1, description="share of the photos kept for checking")] = None,
+        weights: Annotated[
+            dict[str, float] | None,
+            Field(description="weights of the objective's terms (fd_images, fd_wells, dnf, entropy_gap, fid_inception)"),
+        ] = None,
+        multi_objective: bool = False,
+        compare: Annotated[list[str], Field(description="presets also measured in the report")] = [],  # noqa: B006
+        overwrite: Overwrite = False,
+        time_limit_seconds: Annotated[
+            float | None, Field(gt=0, description="stop the job after this long (at most the server's limit)")
+        ] = None,
+    ) -> JobStatus:
+        """Search the scene parameters for renders closer to real photos (Optuna TPE on the realism metrics), as a
+        job; the result names the best configuration (best.yaml, usable as `config`) and its metrics on photos
+        the search never saw. Needs the AlexNet weights; resumes a stopped run."""
+        from platesynth.cli.options import preset_name
+        from platesynth.io import list_images
+        from platesynth.optimise import optimise as run_optimise
+        from platesynth.optimise.run import COUNT, EVAL_COUNT, SIZE
+        from platesynth.outputs import claim_output
+
+        target = write(out, what="out")
+        photos = read(reference, what="reference")
+        config_path = read(config, what="config") if config else None
+        space_path = read(space, what="space") if space else None
+        preset_name(preset)
+        for name in compare:
+            preset_name(name)
+        limits.check_images(len(list_images(photos)), "reference")
+        limits.check_images(count or COUNT, "count")
+        limits.check_images(eval_count or EVAL_COUNT, "eval_count")
+        limits.check_size(*(size or SIZE), "size")
+        if compare_size is not None:
+            limits.check_size(*compare_size, "compare_size")
+        claim_output(target, "optimisation", inputs=[photos, config_path, space_path], overwrite=overwrite)
+        given = {"narrow": narrow, "count": count, "size": size, "compare_size": compare_size,
+                 "eval_count": eval_count, "check_fraction": check_fraction}
+        arguments = {"reference": reference, "out": out, "trials": trials, "preset": preset, "config": config,
+                     "overrides": overrides or {}, "space": space, "seed": seed, "weights": weights or {},
+                     "multi_objective": multi_objective, "compare": compare,
+                     **{k: list(v) if isinstance(v, tuple) else v for k, v in given.items()}}
+
+        def work(report: Report) -> BaseModel:
+            from platesynth.schemas import optimise_summary
+
+            def progress(stage: str, done: int, total: int, best: float | None) -> None:
+                best_text = f", best objective {best:.4g}" if best is not None else ""
+                report(done, total, f"{stage}: {done} of {total}{best_text}")
+
+            result = run_optimise(
+                photos, target, preset=preset, config=config_path, overrides=overrides or None, space=space_path,
+                trials=trials, seed=seed, weights=weights, multi_objective=multi_objective, compare=tuple(compare),
+                overwrite=overwrite, progress=progress, **{k: v for k, v in given.items() if v is not None},
+            )
+            best = workspace.relative(result.best_config) if result.best_config is not None else None
+            return optimise_summary(result, workspace.relative(target), best)
+
+        return jobs.start("optimise", target, workspace.relative(target), arguments, work, time_limit_seconds)
 
     # --------------------------------------------------------------------------------------------------- metrics
 
@@ -845,7 +928,7 @@ def build_server(workspace: Workspace, limits: Limits | None = None) -> Platesyn
         return found
 
     def index(kind: str) -> str:
-        kinds = {"dataset": {"dataset", "prediction"}, "model": {"model"}, "report": {"report"}}[kind]
+        kinds = RESOURCE_KINDS[kind]
         items = [{"path": workspace.relative(p), "uri": f"platesynth://{kind}/{workspace.relative(p)}",
                   "kind": kind_of(p)} for p in discover(kinds)]
         return json.dumps({f"{kind}s": items}, indent=2)
@@ -856,7 +939,7 @@ def build_server(workspace: Workspace, limits: Limits | None = None) -> Platesyn
         except GuardrailError as exc:
             raise ResourceError(_one_line(str(exc))) from None
         found = kind_of(real) if real.exists() else None
-        wanted = {"dataset": ("dataset", "demo", "prediction"), "model": ("model",), "report": ("report",)}[kind]
+        wanted = {*RESOURCE_KINDS[kind], "demo"} if kind == "dataset" else RESOURCE_KINDS[kind]
         if found not in wanted:
             raise ResourceError(f"{path}: not a {kind} in the workspace")
         return real
@@ -869,7 +952,8 @@ def build_server(workspace: Workspace, limits: Limits | None = None) -> Platesyn
     def models_index() -> str:
         return index("model")
 
-    @server.resource("platesynth://reports", mime_type="application/json", description="saved JSON reports in the workspace")
+    @server.resource("platesynth://reports", mime_type="application/json",
+                     description="saved JSON reports and optimisations in the workspace")
     def reports_index() -> str:
         return index("report")
 
@@ -900,14 +984,19 @@ def build_server(workspace: Workspace, limits: Limits | None = None) -> Platesyn
         return json.dumps(jsonable(parts), indent=2)
 
     @server.resource("platesynth://report/{+path}", mime_type="application/json",
-                     description="a JSON report written by a tool's save_as")
+                     description="a JSON report written by a tool's save_as, or an optimisation's report.json")
     def report_resource(path: str) -> str:
-        return resource_path(path, "report").read_text(encoding="utf-8")
+        real = resource_path(path, "report")
+        if real.is_dir():  # an optimisation: its report once written, else its settings
+            from platesynth.optimise.report import REPORT_JSON, SETTINGS_FILE
+
+            real = real / REPORT_JSON if (real / REPORT_JSON).is_file() else real / SETTINGS_FILE
+        return real.read_text(encoding="utf-8")
 
     def discover_resources() -> list[tuple[str, str]]:
         return [
             (kind, workspace.relative(path))
-            for kind, kinds in (("dataset", {"dataset", "prediction"}), ("model", {"model"}), ("report", {"report"}))
+            for kind, kinds in RESOURCE_KINDS.items()
             for path in discover(kinds)
         ]
 
