@@ -191,6 +191,14 @@ def test_failed_trials_are_recorded_not_fatal(reference, weights, tmp_path, monk
     assert states == ["complete", "fail", "complete"]
     assert "fd_wells not finite" in _trials(tmp_path / "nan")[1]["error"]
     assert result.report["n_failed"] == 1
+    # a trial left running by a run that stopped is recorded as failed (interrupted) by the next run
+    import optuna
+
+    optuna.load_study(study_name="platesynth-optimise", storage=f"sqlite:///{tmp_path / 'nan' / 'study.db'}").ask()
+    optimise(reference, tmp_path / "nan", preset="low", trials=4, **TINY)
+    rows = _trials(tmp_path / "nan")
+    assert [row["state"] for row in rows] == ["complete", "fail", "complete", "fail"]
+    assert rows[3]["error"].startswith("interrupted")
 
 
 def test_command_line_refuses_a_bad_space_before_writing(reference, weights, tmp_path):

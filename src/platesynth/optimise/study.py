@@ -22,7 +22,7 @@ from typing import Any
 
 import numpy as np
 
-from platesynth.errors import ParameterError
+from platesynth.errors import ParameterError, PlatesynthError
 from platesynth.optimise.objective import TrialItem, TrialRecord, TrialTask, weighted_sum
 from platesynth.optimise.space import SearchSpace
 
@@ -230,8 +230,13 @@ def run_trials(
             number = len(study.get_trials(deepcopy=False, states=tuple(s for s in TrialState if s != TrialState.WAITING)))
             study.sampler = make_sampler(seed, number)
             trial = study.ask(fixed_distributions=fixed)
+            try:
+                config = space.config(trial.params, name=f"trial {trial.number}").model_dump(mode="json")
+            except PlatesynthError as exc:  # recorded as failed, like a failed render
+                _tell(study, trial, TrialRecord(trial.number, error=str(exc)), weights, objectives, reference)
+                done += 1
+                continue
             trials.append(trial)
-            config = space.config(trial.params, name=f"trial {trial.number}").model_dump(mode="json")
             items.append(TrialItem(trial.number, config, indices))
         by_number = {trial.number: trial for trial in trials}
         for record in executor.map_unordered(task, items):
