@@ -531,3 +531,30 @@ def test_job_manager_failures_and_overlapping_outputs(tmp_path):
         job = manager.get(job_id)
         assert job.finished.wait(10)
         assert job.status().state == "failed" and job.status().error == "data: broken second line"
+
+
+def test_a_render_with_a_failed_image_is_a_failed_job(tmp_path, monkeypatch):
+    import platesynth.data.batch as batch
+    from platesynth.errors import RenderError
+
+    original = batch.render_item
+
+    def flaky(manifest, index):
+        if index == 1:
+            raise RenderError("Blender said: out of GPU memory\nsecond line of the log")
+        return original(manifest, index)
+
+    monkeypatch.setattr(batch, "render_item", flaky)
+
+    async def steps(client, workspace):
+        job = ok(await client.call_tool("render", {"out": "d", "count": 3, **SMALL}))
+        status = ok(await client.call_tool("job_wait", {"job_id": job["job_id"], "timeout_seconds": 60}))
+        assert status["state"] == "failed" and status["result"] is None
+        assert status["error"].startswith("1 of 3 images failed to render (first: 000001: RenderError: Blender said")
+        assert "\n" not in status["error"] and "retries the failed ones" in status["error"]
+        assert len(list((workspace.root / "d" / "images").glob("*.png"))) == 2
+        monkeypatch.setattr(batch, "render_item", original)
+        again = await wait(client, ok(await client.call_tool("render", {"out": "d", "count": 3, **SMALL})))
+        assert again["result"]["rendered"] == 1 and again["result"]["skipped"] == 2
+
+    call_sync(tmp_path, steps)

@@ -35,7 +35,7 @@ from platesynth import __version__
 from platesynth.agent.jobs import JobList, JobManager, JobStatus, Report
 from platesynth.agent.workspace import GuardrailError, Limits, Workspace
 from platesynth.cli._common import USER_FACING, error_message
-from platesynth.errors import ParameterError
+from platesynth.errors import ParameterError, RenderError
 from platesynth.scene import Scene, SceneConfig
 from platesynth.schemas import (
     Catalogue,
@@ -418,6 +418,12 @@ def build_server(workspace: Workspace, limits: Limits | None = None) -> Platesyn
                 summary = render_dataset(
                     target, manifest, executor=pool, overwrite=overwrite,
                     progress=lambda done, total: report(done, total, f"rendered {done} of {total}"),
+                )
+            if summary.failed:  # as the command line's exit code 1: a render with failed images is no success
+                name, error = next(iter(summary.failed.items()))
+                raise RenderError(
+                    f"{len(summary.failed)} of {summary.count} images failed to render (first: {name}: "
+                    f"{error.splitlines()[0]}); the others are written, and rendering again retries the failed ones"
                 )
             result = summary.to_dict()
             result["directory"] = workspace.relative(target)
