@@ -84,3 +84,24 @@ def test_skill_reference_command_writes_and_checks(tmp_path):
     assert runner.invoke(app, ["skill", "reference", "--out", str(out), "--check"]).exit_code == 0
     out.write_text(out.read_text(encoding="utf-8").replace("plaques.radius_mm", "plaques.radius"), encoding="utf-8")
     assert runner.invoke(app, ["skill", "reference", "--out", str(out), "--check"]).exit_code == 1
+
+
+def test_docs_list_every_tool():
+    pytest.importorskip("mcp")
+    import tempfile
+
+    import anyio
+
+    from platesynth.agent.server import build_server
+    from platesynth.agent.workspace import Workspace
+
+    async def names(tmp: Path) -> set[str]:
+        return {tool.name for tool in await build_server(Workspace.create(tmp)).list_tools()}
+
+    with tempfile.TemporaryDirectory() as tmp:
+        tools = anyio.run(names, Path(tmp))
+    text = (SKILL.parents[1] / "docs" / "agents.md").read_text(encoding="utf-8")
+    table = text[text.index("## Tools"):text.index("## Resources")]
+    documented = {name for row in table.splitlines() if row.startswith("| `")
+                  for name in re.findall(r"`([a-z_]+)`", row.split("|")[1])}
+    assert documented == tools

@@ -869,20 +869,18 @@ def build_server(workspace: Workspace, limits: Limits | None = None) -> Platesyn
         if not path.is_dir():
             raise GuardrailError(f"{folder}: not a folder")
         children = sorted(p for p in path.iterdir() if not p.name.startswith("."))
+        folder_name = workspace.relative(path)
         entries = []
         for child in children[:limit]:
-            if child.is_symlink():
-                try:
-                    workspace.resolve(workspace.relative(child))
-                except GuardrailError:
-                    continue  # a link out of the workspace is not shown
-            is_dir = child.is_dir()
-            entries.append(FileEntry(
-                path=workspace.relative(child) if not child.is_symlink() else f"{workspace.relative(path)}/{child.name}".removeprefix("./"),
-                type="folder" if is_dir else "file",
-                kind=kind_of(child), bytes=None if is_dir else child.stat().st_size,
-            ))
-        return FileList(folder=workspace.relative(path), entries=entries, truncated=len(children) > limit)
+            name = child.name if folder_name == "." else f"{folder_name}/{child.name}"
+            try:
+                real = read(name, what="folder") if child.is_symlink() else child
+                is_dir = real.is_dir()
+                entries.append(FileEntry(path=name, type="folder" if is_dir else "file", kind=kind_of(real),
+                                         bytes=None if is_dir else real.stat().st_size))
+            except (GuardrailError, OSError):
+                continue  # a link out of the workspace (or a broken one) is not shown
+        return FileList(folder=folder_name, entries=entries, truncated=len(children) > limit)
 
     @tool(annotations=types.ToolAnnotations(read_only_hint=True))
     @_library_errors
