@@ -558,3 +558,22 @@ def test_a_render_with_a_failed_image_is_a_failed_job(tmp_path, monkeypatch):
         assert again["result"]["rendered"] == 1 and again["result"]["skipped"] == 2
 
     call_sync(tmp_path, steps)
+
+
+def test_the_mcp_command_refuses_bad_options_in_one_line(tmp_path):
+    from typer.testing import CliRunner
+
+    from platesynth.cli import app
+
+    runner = CliRunner()
+    for options, words in (
+        (["--transport", "tcp"], "--transport 'tcp': choose stdio or http"),
+        (["--read-only-root", str(tmp_path / "missing")], "a read-only root must be an existing folder"),
+        (["--read-only-root", str(tmp_path)], "may not contain or lie inside the workspace"),
+        (["--max-jobs", "0"], "limit max_jobs must be >= 1"),
+        (["--max-job-seconds", "0"], "limit max_job_seconds must be > 0"),
+    ):
+        result = runner.invoke(app, ["mcp", "--workspace", str(tmp_path / "ws"), *options])
+        assert result.exit_code == 1 and result.stdout == "", (options, result.output)
+        assert len(result.stderr.strip().splitlines()) == 1 and words in result.stderr, result.stderr
+        assert not (tmp_path / "ws").exists()  # nothing created by a refused command

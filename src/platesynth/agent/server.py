@@ -175,13 +175,14 @@ def _one_line(text: str) -> str:
     return " ".join(str(text).split())
 
 
-def _validation_line(tool: str, exc: ValidationError) -> str:
+def _validation_line(tool: str | None, exc: ValidationError) -> str:
     parts = []
     for error in exc.errors()[:3]:
         where = ".".join(str(p) for p in error["loc"]) or "arguments"
         parts.append(f"{where}: {error['msg']}")
     more = f" (and {exc.error_count() - 3} more)" if exc.error_count() > 3 else ""
-    return f"invalid arguments for {tool}: {'; '.join(parts)}{more}"
+    what = f"invalid arguments for {tool}" if tool else "invalid request"
+    return f"{what}: {'; '.join(parts)}{more}"
 
 
 class PlatesynthServer(MCPServer):
@@ -222,7 +223,7 @@ def _describe(exc: BaseException) -> str:
     if isinstance(exc, USER_FACING):
         return error_message(exc)
     if isinstance(exc, ValidationError):
-        return _validation_line("the request", exc)
+        return _validation_line(None, exc)
     return f"internal error ({type(exc).__name__}: {exc})"
 
 

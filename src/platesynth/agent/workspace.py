@@ -80,10 +80,8 @@ class Workspace:
         GuardrailError
             If ``root`` is not a folder, a read-only root does not exist, or the two overlap.
         """
-        root_path = Path(root).expanduser()
-        root_path.mkdir(parents=True, exist_ok=True)
-        root_path = root_path.resolve()
-        if not root_path.is_dir():
+        root_path = Path(root).expanduser().resolve()
+        if root_path.exists() and not root_path.is_dir():
             raise GuardrailError(f"{root}: the workspace is not a folder")
         readable = []
         for folder in read_only_roots:
@@ -93,6 +91,7 @@ class Workspace:
             if _is_inside(path, root_path) or _is_inside(root_path, path):
                 raise GuardrailError(f"{folder}: a read-only root may not contain or lie inside the workspace {root}")
             readable.append(path)
+        root_path.mkdir(parents=True, exist_ok=True)  # only once everything is checked
         return cls(root_path, tuple(readable))
 
     def resolve(self, name: str, *, write: bool = False, what: str = "path") -> Path:
