@@ -424,6 +424,8 @@ def test_errors_are_one_line_tool_errors(tmp_path):
         refused(await client.call_tool("render", {"out": "d"}), "count: Field required")
         refused(await client.call_tool("render", {"out": "d", "count": 1, "size": [0, 10]}), "size")
         refused(await client.call_tool("dataset_metrics", {"directory": "nothing"}), "nothing")
+        refused(await client.call_tool("dataset_metrics", {"directory": "d", "model": "m"}), "model is used by wells only")
+        refused(await client.call_tool("dataset_metrics", {"directory": "d", "wells": True}), "wells needs a reference")
         refused(await client.call_tool("evaluate_masks", {"model": "nowhere", "data": "nothing"}))
         (workspace.root / "m").mkdir()
         (workspace.root / "m" / "config.json").write_text("{}")

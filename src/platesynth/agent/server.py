@@ -585,6 +585,9 @@ def build_server(workspace: Workspace, limits: Limits | None = None) -> Platesyn
         wells: Annotated[bool, Field(description="add the well-crop metrics against the reference")] = False,
         well_size: Annotated[int, Field(ge=31, le=512, description="side of the well crops, pixels")] = 128,
         well_grid: Annotated[tuple[int, int], Field(description="[rows, columns] of plates without masks")] = (3, 4),
+        model: Annotated[
+            str | None, Field(description="with wells: a model whose predicted wells replace the grid for photos")
+        ] = None,
         save_as: SaveAs = None,
     ) -> Annotated[types.CallToolResult, DatasetMetrics]:
         """Diversity (pixel entropy, brightness variability) and naturalness of a folder of images; with a reference
@@ -595,6 +598,9 @@ def build_server(workspace: Workspace, limits: Limits | None = None) -> Platesyn
 
         if wells and reference is None:
             raise ParameterError("wells needs a reference (the real plates to compare the wells with)")
+        if model is not None and not wells:
+            raise ParameterError("model is used by wells only")
+        model_dir = read(model, what="model") if model else None
         folder = read(directory, what="directory")
         reference_path = read(reference, what="reference") if reference else None
         target = report_target(save_as)
@@ -609,12 +615,13 @@ def build_server(workspace: Workspace, limits: Limits | None = None) -> Platesyn
                          frechet=frechet)
         if wells:
             grid = (int(well_grid[0]), int(well_grid[1]))
-            result.update(well_metrics(folder, reference_path, size=well_size, grid=grid, frechet=frechet))
+            result.update(well_metrics(folder, reference_path, size=well_size, grid=grid, model=model_dir,
+                                       frechet=frechet))
         metrics = from_result(DatasetMetrics, result)
         save_report(target, "dataset_metrics", {"directory": directory, "reference": reference,
                                                   "size": list(size) if size else None, "frechet": frechet,
                                                   "wells": wells, "well_size": well_size,
-                                                  "well_grid": list(well_grid)}, metrics)
+                                                  "well_grid": list(well_grid), "model": model}, metrics)
         return _structured(metrics)
 
     # ---------------------------------------------------------------------------------------------- segmentation
