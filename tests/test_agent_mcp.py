@@ -122,7 +122,7 @@ def test_scene_tools_match_the_library(tmp_path):
         assert config["plate"]["format"] == 6 and config["name"] == "low"
         refused(await client.call_tool("scene_config", {"overrides": {"plaques.radius_mm": 99}}), "plaques.radius_mm")
         refused(await client.call_tool("scene_config", {"overrides": {"plaques.radius": 1}}), "did you mean plaques.radius_mm")
-        refused(await client.call_tool("sample_scene", {"preset": "../high"}), "unknown preset")
+        refused(await client.call_tool("sample_scene", {"preset": "../high"}), "preset: Input should be 'diverse'")
 
     call_sync(tmp_path, steps)
 

@@ -70,8 +70,18 @@ WorkspacePath = Annotated[str, Field(description="a path relative to the workspa
 ReadPath = Annotated[
     str, Field(description="a path relative to the workspace, or an absolute path inside a read-only root")
 ]
+
+
+def _preset_names() -> Any:
+    from platesynth.scene import list_presets
+
+    return Literal[tuple(list_presets())]  # type: ignore[valid-type]
+
+
+Preset = _preset_names()
+"""A shipped preset's name, as an enumeration in the tools' schemas."""
 PresetName = Annotated[
-    str | None, Field(description="a shipped preset's name (tool `presets`); None starts from the defaults")
+    Preset | None, Field(description="a shipped preset's name (tool `presets`); omit it to start from the defaults")
 ]
 ConfigPath = Annotated[
     str | None, Field(description="a YAML scene configuration in the workspace, applied over the preset")
@@ -458,7 +468,7 @@ def build_server(workspace: Workspace, limits: Limits | None = None) -> Platesyn
             Field(description="weights of the objective's terms (fd_images, fd_wells, dnf, entropy_gap, fid_inception)"),
         ] = None,
         multi_objective: bool = False,
-        compare: Annotated[list[str], Field(description="presets also measured in the report")] = [],  # noqa: B006
+        compare: Annotated[list[Preset], Field(description="presets also measured in the report")] = [],  # noqa: B006
         overwrite: Overwrite = False,
         time_limit_seconds: Annotated[
             float | None, Field(gt=0, description="stop the job after this long (at most the server's limit)")
