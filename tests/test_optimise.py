@@ -216,3 +216,10 @@ def test_command_line_refuses_a_bad_space_before_writing(reference, weights, tmp
         f"error: {space}: stain.hue_deg: 400 is out of range: valid range is [0, 360] deg"
     ]
     assert not out.exists()
+
+
+def test_multi_objective_keeps_a_pareto_front(reference, weights, tmp_path, one_torch_thread):
+    result = optimise(reference, tmp_path / "multi", preset="low", trials=2, multi_objective=True, **TINY)
+    assert result.report["objectives"] == ["fd_images", "fd_wells", "dnf", "entropy_gap"]
+    assert result.report["best_trial"] in result.report["pareto_trials"]
+    assert (tmp_path / "multi" / "pareto.csv").is_file() and (tmp_path / "multi" / "pareto.png").is_file()

@@ -36,7 +36,7 @@ IMPORTANCE_PARAMETERS = 20
 """The most important parameters shown in the importance plot (all are in ``report.json``)."""
 PARETO_PLOT = "pareto.png"
 OUTPUT_FILES = (
-    SETTINGS_FILE, SPLIT_FILE, STUDY_FILE, f"{STUDY_FILE}-journal", TRIALS_CSV, TRIALS_JSON, PARETO_CSV, BEST_CONFIG,
+    SETTINGS_FILE, SPLIT_FILE, STUDY_FILE, f"{STUDY_FILE}-journal", f"{STUDY_FILE}-wal", f"{STUDY_FILE}-shm", TRIALS_CSV, TRIALS_JSON, PARETO_CSV, BEST_CONFIG,
     REPORT_JSON, REPORT_MD, CONTACT_SHEET, HISTORY_PLOT, IMPORTANCE_PLOT, PARETO_PLOT,
 )
 """Every file an optimisation run may write into its folder."""
