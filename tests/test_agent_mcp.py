@@ -418,6 +418,16 @@ def test_limits_are_enforced(tmp_path):
     call_sync(tmp_path, steps, limits=limits)
 
 
+class _Payload:
+    """Unpickling this would create the file ``path``: what a crafted weights file could do instead."""
+
+    def __init__(self, path: Path) -> None:
+        self.path = str(path)
+
+    def __reduce__(self):
+        return open, (self.path, "w")
+
+
 def test_errors_are_one_line_tool_errors(tmp_path):
     async def steps(client, workspace):
         refused(await client.call_tool("render", {"out": "d", "count": "many"}), "invalid arguments for render", "count")
@@ -427,10 +437,19 @@ def test_errors_are_one_line_tool_errors(tmp_path):
         refused(await client.call_tool("dataset_metrics", {"directory": "d", "model": "m"}), "model is used by wells only")
         refused(await client.call_tool("dataset_metrics", {"directory": "d", "wells": True}), "wells needs a reference")
         refused(await client.call_tool("evaluate_masks", {"model": "nowhere", "data": "nothing"}))
-        (workspace.root / "m").mkdir()
-        (workspace.root / "m" / "config.json").write_text("{}")
-        (workspace.root / "m" / "weights.pt").write_bytes(b"\x80\x04cos\nsystem\nq\x00.")
-        refused(await client.call_tool("predict", {"images": ["x.png"], "model": "m", "out": "p"}))
+        # a model whose weights would run code when unpickled: refused, the payload never runs
+        import shutil
+
+        import torch
+
+        shutil.copytree(Path(__file__).resolve().parents[1] / "models" / "plaque12", workspace.root / "m")
+        torch.save(_Payload(workspace.root / "PWNED"), workspace.root / "m" / "weights.pt")
+        refused(await client.call_tool("evaluate_masks", {"model": "m", "data": "d"}))  # no such dataset yet
+        await wait(client, ok(await client.call_tool("render", {"out": "d", "count": 1, **SMALL})))
+        for name, arguments in (("evaluate_masks", {"model": "m", "data": "d"}),
+                                ("predict", {"images": ["d/images"], "model": "m", "out": "p"})):
+            refused(await client.call_tool(name, arguments), "m/weights.pt: refused, not a file of tensors and plain data only")
+        assert not (workspace.root / "PWNED").exists() and not (workspace.root / "p").exists()
         (workspace.root / "junk").mkdir()
         (workspace.root / "junk" / "mine.txt").write_text("not platesynth's")
         refused(await client.call_tool("render", {"out": "junk", "count": 1, **SMALL}), "choose another output")
