@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
 import tempfile
 from pathlib import Path
@@ -82,7 +83,9 @@ async def loop(workspace: Path, photo: Path | None) -> dict[str, Any]:
             "--max-images", "50", "--max-image-side", "2048", "--max-job-seconds", "600"]
     if photo is not None:
         args += ["--read-only-root", str(photo.parent.resolve())]
-    server = StdioServerParameters(command=sys.executable, args=args)
+    # the server gets this environment (PLATESYNTH_WEIGHTS_DIR, PLATESYNTH_MEMORY_LIMIT, ...); by default an MCP
+    # client passes only a few variables such as PATH and HOME
+    server = StdioServerParameters(command=sys.executable, args=args, env=dict(os.environ))
     async with Client(server) as client:
         tools = await client.list_tools()
         print(f"server: {len(tools.tools)} tools: {', '.join(t.name for t in tools.tools)}")
