@@ -258,7 +258,7 @@ def test_job_progress_timeout_cancel_and_resume(tmp_path):
         started = time.monotonic()
         status = ok(await client.call_tool("job_wait", {"job_id": job["job_id"], "timeout_seconds": 0.8},
                                            progress_callback=on_progress))
-        assert status["state"] == "running" and 0.7 < time.monotonic() - started < 5
+        assert status["state"] == "running" and 0.7 < time.monotonic() - started < 15
         assert progress and progress[-1][1] == 100 and all(p[2] for p in progress)
         # a second job into the same folder, or over the concurrency limit, is refused while this one runs
         refused(await client.call_tool("render", {"out": "other", **big}), "limit is 1", "--max-jobs")
