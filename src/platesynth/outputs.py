@@ -44,17 +44,21 @@ FOLDER_KINDS = {
     "prediction": "a prediction folder",
     "model": "a model directory",
     "optimisation": "an optimisation run",
+    "study": "a study",
 }
 FILE_KINDS = {
     "preview": "a contact sheet",
     "table": "a per-well count table",
     "blend": "a .blend scene",
+    "report": "an HTML report",
 }
 _OTHER = "other"
 _DESCRIPTIONS = {**FOLDER_KINDS, **FILE_KINDS, _OTHER: "files platesynth did not write"}
 
 PREVIEW_TEXT_KEY = "platesynth"
 """The PNG text chunk (``platesynth: preview``) that marks a contact sheet as written by ``platesynth preview``."""
+REPORT_GENERATOR = '<meta name="generator" content="platesynth report">'
+"""The line in the head of an HTML page written by ``platesynth report`` that marks it as one."""
 TABLE_COLUMNS = ("image", "row", "col", "well", "count", "predicted", "detected", "predicted_countable")
 """The header of the per-well table ``platesynth evaluate counts --table`` writes."""
 
@@ -94,6 +98,7 @@ def folder_kind(directory: str | os.PathLike) -> str | None:
 
     The marker decides; without one (folders written before it existed, or by the library functions) the files do:
     ``manifest.json`` a dataset (a demo folder with ``preview.png``), ``optimise.json`` an optimisation run,
+    ``study.json`` a study,
     ``train.json``, ``checkpoint.pt`` or ``weights.pt`` with ``config.json`` a model, params naming their ``source``
     image a prediction.
     """
@@ -111,6 +116,8 @@ def folder_kind(directory: str | os.PathLike) -> str | None:
         return "demo" if "preview.png" in names else "dataset"
     if "optimise.json" in names:
         return "optimisation"
+    if "study.json" in names:
+        return "study"
     if {"train.json", "checkpoint.pt"} & names or {"weights.pt", "config.json"} <= names:
         return "model"
     if _is_prediction(directory):
@@ -146,6 +153,9 @@ def file_kind(path: str | os.PathLike) -> str | None:
                     return "preview"
         elif path.suffix.lower() == ".blend":  # plain, zstd- or gzip-compressed
             return "blend" if head[:7] == b"BLENDER" or head[:4] == b"\x28\xb5\x2f\xfd" or head[:2] == b"\x1f\x8b" else _OTHER
+        elif path.suffix.lower() in (".html", ".htm"):
+            with path.open("rb") as handle:
+                return "report" if REPORT_GENERATOR.encode() in handle.read(2048) else _OTHER
         elif path.suffix.lower() == ".csv":
             with path.open(encoding="utf-8", newline="") as handle:
                 header = handle.readline().strip().split(",")
@@ -302,6 +312,14 @@ def _files_of(directory: Path, kind: str) -> list[Path]:
 
         temporary = [p for p in directory.iterdir() if p.is_file() and p.name.startswith(".") and ".tmp" in p.name]
         return [directory / name for name in OUTPUT_FILES] + temporary
+    if kind == "study":
+        from platesynth.study.run import OUTPUT_FILES, OUTPUT_FOLDERS
+
+        files = [directory / name for name in OUTPUT_FILES]
+        for name in OUTPUT_FOLDERS:
+            if (directory / name).is_dir():
+                files += [p for p in (directory / name).rglob("*") if p.is_file()]
+        return files + [p for p in directory.iterdir() if p.is_file() and p.name.startswith(".") and ".tmp" in p.name]
     from platesynth.data.layout import is_item_name
 
     files = [directory / name for name in ("manifest.json", "counts.csv", "annotations.coco.json")]

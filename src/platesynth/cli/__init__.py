@@ -9,7 +9,7 @@ from collections.abc import Iterator
 import typer
 
 from platesynth import __version__
-from platesynth.cli import agent, blender, metrics, optimise, render, scene, segment
+from platesynth.cli import agent, blender, metrics, optimise, render, report, scene, segment, study
 from platesynth.cli._common import CommandGroup
 
 app = typer.Typer(
@@ -20,7 +20,7 @@ app = typer.Typer(
     pretty_exceptions_enable=False,
     add_completion=False,
 )
-for _module in (metrics, scene, blender, render, segment, optimise, agent):
+for _module in (metrics, scene, blender, render, segment, optimise, study, report, agent):
     _module.register(app)
 
 
