@@ -172,14 +172,16 @@ def photo_samples(folder: Path, count: int = SAMPLES) -> list[str]:
 
 
 def page(title: str, subtitle: str, sections: Sequence[str]) -> str:
-    """The whole page: head with the generator mark and the style, the outline checkbox, the sections."""
+    """The whole page: head with the generator mark and the style, the outline checkbox (where there are mask
+    outlines to show), the sections."""
+    toggle = ('<input type="checkbox" id="outlines"><label class="toggle" for="outlines">show mask outlines '
+              "(wells cyan, plaques yellow)</label>\n") if any('class="outlined"' in s for s in sections) else ""
     return (
         "<!DOCTYPE html>\n<html lang=\"en\">\n<head>\n<meta charset=\"utf-8\">\n"
         f"{REPORT_GENERATOR}\n<meta name=\"viewport\" content=\"width=device-width, initial-scale=1\">\n"
         f"<title>{esc(title)}</title>\n<style>{STYLE}</style>\n</head>\n<body>\n"
-        f"<header><h1>{esc(title)}</h1><p>{esc(subtitle)}</p></header>\n<main>\n"
-        '<input type="checkbox" id="outlines"><label class="toggle" for="outlines">show mask outlines '
-        "(wells cyan, plaques yellow)</label>\n" + "\n".join(sections) + "\n</main>\n</body>\n</html>\n"
+        f"<header><h1>{esc(title)}</h1><p>{esc(subtitle)}</p></header>\n<main>\n{toggle}"
+        + "\n".join(sections) + "\n</main>\n</body>\n</html>\n"
     )
 
 
