@@ -16,11 +16,11 @@ $(BIN)/python:
 
 env: $(BIN)/python
 	$(BIN)/pip install --quiet "$(TORCH_SPEC)"
-	$(BIN)/pip install --quiet -e ".[dask,segment,agent,optimise]"
+	$(BIN)/pip install --quiet -e ".[dask,segment,agent,optimise,study]"
 
 env-test: $(BIN)/python system-deps
 	$(BIN)/pip install --quiet "$(TORCH_SPEC)"
-	$(BIN)/pip install --quiet -e ".[dask,segment,blender,agent,optimise,test]"
+	$(BIN)/pip install --quiet -e ".[dask,segment,blender,agent,optimise,study,test]"
 	# The reference implementation, for parity tests and benchmarks only (its own pins would pull CUDA torch).
 	$(BIN)/pip install --quiet --no-deps granatpy==0.1.3
 

@@ -143,10 +143,11 @@ CASES = [
      "arms[2].mix: unknown arm 'hgih-S' (the rendered arms are high-S, low-S)"),
     (lambda d: d["arms"].append({"name": "m", "mix": {"real": 0.1, "low-S": 0.9}}), "'real' needs real_training"),
     (lambda d: d["arms"].append(dict(d["arms"][0])), "arms[2].name: 'high-S' appears twice"),
-    (lambda d: d["arms"][0].update(preset="hgih"), "arms high-S: unknown preset 'hgih'"),
-    (lambda d: d["arms"][0].update(overrides={"stain.hue_dg": 3}), "arms high-S: "),
+    (lambda d: d["arms"][0].update(preset="hgih"), "bad.yaml: arms[0] (high-S): unknown preset 'hgih'"),
+    (lambda d: d["arms"][0].update(overrides={"stain.hue_dg": 3}), "arms[0] (high-S): override stain.hue_dg: unknown parameter (did you mean stain.hue_deg?)"),
     (lambda d: d.update(size="12x"), "size: expected WIDTHxHEIGHT"),
-    (lambda d: d["recipe"].update(patch="65x65"), "must be a positive multiple"),
+    (lambda d: d["recipe"].update(patch="65x65"), "bad.yaml: recipe: patch 65x65 must be a positive multiple"),
+    (lambda d: d["recipe"].update(model={"chanels": [8]}), "bad.yaml: recipe.model: chanels: unknown field"),
     (lambda d: d.update(reference="nowhere"), "reference: "),
 ]
 

@@ -38,6 +38,9 @@ def study(
     connect_timeout: Annotated[
         float, typer.Option("--connect-timeout", help="Seconds to wait for the Dask scheduler.")
     ] = 10.0,
+    overwrite: Annotated[
+        bool, typer.Option("--overwrite", help="Replace another kind of output in --out (its files only).")
+    ] = False,
     as_json: Annotated[bool, typer.Option("--json", help="Print the tables as JSON on stdout.")] = False,
 ) -> None:
     """Run a study: every arm's dataset rendered, measured, trained on and evaluated; tables and radar charts.
@@ -56,7 +59,8 @@ def study(
         console.print(f"study {spec.name}: {len(spec.arms)} arms into {out} on {pool.describe()}", highlight=False)
 
     with bar:
-        result = run_study(spec, out, executor=pool, inputs=(study_file,), progress=progress, before_writing=announce)
+        result = run_study(spec, out, executor=pool, inputs=(study_file,), overwrite=overwrite, progress=progress,
+                           before_writing=announce)
     for note in result.notes:
         console.print(styled("note:", "yellow", note), highlight=False, soft_wrap=True)
     console.print(f"{len(result.ran)} stage(s) run, {len(result.cached)} found done, {len(result.failed)} failed, "

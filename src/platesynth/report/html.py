@@ -446,8 +446,11 @@ def build_report(directory: str | os.PathLike, reference: str | os.PathLike | No
     DatasetError, EmptyDatasetError, ImageReadError
         For a folder that holds nothing to report on, or unreadable files in it (named).
     """
+    from platesynth.study.run import require
+
     directory = Path(directory)
     kind = report_kind(directory)
+    require("matplotlib", "study", "platesynth report")
     try:
         if kind == "study":
             title, subtitle, sections = study_report(directory)

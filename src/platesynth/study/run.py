@@ -162,16 +162,16 @@ def plan_study(spec: StudySpec, out: str | os.PathLike) -> StudyPlan:
             plan.test_render = _render(plan, _manifest(spec, test.preset, test.config, test.overrides, test.seed,
                                                        test.count))
         except PlatesynthError as exc:
-            raise ParameterError(f"evaluation.test: {exc}") from None
+            raise ParameterError(f"{spec.source}: evaluation.test: {exc}") from None
     measure_settings = spec.metrics.model_dump(mode="json")
     renders: dict[str, list[str]] = {}
-    for arm in spec.arms:
+    for number, arm in enumerate(spec.arms):
         if arm.mix is None:
             try:
                 renders[arm.name] = [_render(plan, _manifest(spec, arm.preset, arm.config, arm.overrides, seed,
                                                              arm.count or 1)) for seed in arm.seeds]
             except PlatesynthError as exc:
-                raise ParameterError(f"arms {arm.name}: {exc}") from None
+                raise ParameterError(f"{spec.source}: arms[{number}] ({arm.name}): {exc}") from None
     from platesynth.segment.counts import plate_shape
 
     grid = plate_shape(spec.plate)
@@ -202,8 +202,10 @@ def plan_study(spec: StudySpec, out: str | os.PathLike) -> StudyPlan:
                     mix.append(fraction)
             try:
                 options = _train_options(spec, sources, mix, seed)
+            except ParameterError as exc:
+                raise ParameterError(f"{spec.source}: {exc}") from None
             except (ValueError, PlatesynthError) as exc:
-                raise ParameterError(f"recipe: {' '.join(str(exc).split())}") from None
+                raise ParameterError(f"{spec.source}: recipe: {' '.join(str(exc).split())}") from None
             depends = {"data": data_keys, "mix": mix, "train": {k: v for k, v in options["train"].items() if k != "data"},
                        "model": options["model"]}
             train_key = plan.add(Stage("train", cache.stage_key("train", depends), depends, options,
@@ -284,11 +286,21 @@ def _without_history(result: dict[str, Any] | None) -> dict[str, Any] | None:
     return None if result is None else {k: v for k, v in result.items() if k != "history"}
 
 
+def require(module: str, extra: str, what: str) -> None:
+    """Refuse in one line, with the install hint, where an optional package is missing."""
+    import importlib.util
+
+    if importlib.util.find_spec(module) is None:
+        raise PlatesynthError(f"{what} needs {module}: pip install 'platesynth[{extra}]'")
+
+
 def check_study(spec: StudySpec) -> None:
-    """Checks that need the library (weights, memory) before anything is written.
+    """Checks that need the library (packages, weights, memory) before anything is written.
 
     Raises
     ------
+    PlatesynthError
+        If matplotlib (the charts) or stardist (the training targets) is not installed.
     WeightsNotFoundError
         If the AlexNet weights are needed (``metrics.frechet``) and cannot be found.
     ResourceLimitError
@@ -296,6 +308,8 @@ def check_study(spec: StudySpec) -> None:
     """
     from platesynth.limits import check_render
 
+    require("matplotlib", "study", "platesynth study")
+    require("stardist", "segment", "platesynth study")
     if spec.metrics.frechet:
         from platesynth.weights import resolve_weights
 
@@ -309,6 +323,7 @@ def run_study(
     *,
     executor: Executor | None = None,
     inputs: tuple[str | os.PathLike | None, ...] = (),
+    overwrite: bool = False,
     progress: Progress | None = None,
     before_writing: Callable[[], None] | None = None,
 ) -> StudyResult:
@@ -322,6 +337,7 @@ def run_study(
     executor : an executor of :mod:`platesynth.data.executor`, not yet entered (it is entered here, after the
         checks); the stages of a wave run on it in parallel. Default: this process.
     inputs : files the command reads (the study file): an output over them is refused.
+    overwrite : replace another kind of output in ``out`` (its files only) instead of refusing.
     progress : ``progress(stage, done, total)``.
     before_writing : called once everything is validated, right before the first write.
 
@@ -342,7 +358,8 @@ def run_study(
     plan = plan_study(spec, out)
     check_study(spec)
     claim = claim_output(out, "study", inputs=[*inputs, spec.reference, spec.evaluation.images,
-                                               spec.evaluation.counts, spec.evaluation.masks, spec.real_training])
+                                               spec.evaluation.counts, spec.evaluation.masks, spec.real_training],
+                         overwrite=overwrite)
     if before_writing is not None:
         before_writing()
     result = StudyResult(out)

@@ -14,7 +14,7 @@ import re
 from pathlib import Path
 from typing import Any
 
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
+from pydantic import BaseModel, ConfigDict, Field, PrivateAttr, ValidationError, field_validator, model_validator
 
 from platesynth.errors import ParameterError, PlatesynthError
 from platesynth.limits import read_yaml_file
@@ -163,6 +163,12 @@ class StudySpec(_Strict):
     recipe: Recipe = Field(default_factory=Recipe)
     metrics: Metrics = Field(default_factory=Metrics)
     arms: list[Arm] = Field(min_length=1)
+    _source: str = PrivateAttr("study")
+
+    @property
+    def source(self) -> str:
+        """Where the study came from (its file), for messages."""
+        return self._source
 
     @field_validator("size", mode="before")
     @classmethod
@@ -257,7 +263,9 @@ def parse_study(data: Any, source: str = "study", base: str | os.PathLike = ".")
         spec = StudySpec.model_validate(data)
     except ValidationError as exc:
         raise ParameterError(validation_line(exc, source)) from None
-    return _resolved(spec, Path(base).resolve())
+    spec = _resolved(spec, Path(base).resolve())
+    spec._source = source
+    return spec
 
 
 def load_study(path: str | os.PathLike) -> StudySpec:
