@@ -314,8 +314,16 @@ def study_report(directory: Path) -> tuple[str, str, list[str]]:
                             f'<img class="plot" src="{scatter}" alt="scatter of predicted against counted plaques">'
                             if scatter else '<p class="note">No counts evaluated.</p>', "counts"))
     sections.append(section("Worst wells", _worst_wells(directory, results), "worst"))
+    notes = sorted({f"{arm['label']}: {note}" for arm in results["arms"] for replicate in arm["replicates"]
+                    for stage in ("measure", "evaluate") for note in ((replicate.get(stage) or {}).get("notes") or [])})
+    failed = [f"{arm['label']} (seed {r['seed']}): {stage} not done" for arm in results["arms"]
+              for r in arm["replicates"] for stage, key in r["keys"].items() if key is not None and r.get(stage) is None]
+    if notes or failed:
+        items = "".join(f"<li>{esc(line)}</li>" for line in [*failed, *notes])
+        sections.append(section("Notes", f"<ul class=\"note\">{items}</ul>", "notes"))
     n_replicates = sum(len(arm["replicates"]) for arm in results["arms"])
-    subtitle = f"study: {len(results['arms'])} arms, {n_replicates} runs; platesynth {results['platesynth_version']}"
+    subtitle = (f"{spec.get('description') or 'study'} ({len(results['arms'])} arms, {n_replicates} runs; "
+                f"platesynth {results['platesynth_version']})")
     return f"platesynth study {spec.get('name', directory.name)}", subtitle, sections
 
 
