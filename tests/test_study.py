@@ -181,3 +181,18 @@ def test_the_shipped_study_is_valid():
     assert {"high-S", "high-L", "medium-S", "medium-L", "low-S", "low-L"} <= names
     with pytest.raises(ParameterError, match="unknown field"):
         parse_study({"reference": "x", "arms": [{"name": "a", "preset": "high", "count": 1, "size": 3}]})
+
+
+def test_overwriting_a_study_removes_its_files_only(tmp_path):
+    from platesynth.outputs import claim_output, folder_kind
+
+    study = tmp_path / "s"
+    (study / "stages" / "render" / "k" / "data").mkdir(parents=True)
+    (study / "tables").mkdir()
+    for name in ("study.json", "results.json", "report.html", "radar_wells.svg", "stages/render/k/data/a.png",
+                 "tables/plaques.md", "mine.txt"):
+        (study / name).write_text("x")
+    assert folder_kind(study) == "study"
+    with claim_output(study, "dataset", overwrite=True) as claim:
+        claim.take()
+    assert sorted(p.name for p in study.iterdir()) == [".platesynth-output", "mine.txt"]

@@ -352,6 +352,15 @@ def remove_output_files(
     for name in (*_ITEM_SUFFIXES, "masks"):
         with contextlib.suppress(OSError):
             (directory / name).rmdir()  # only where empty
+    if kind == "study":  # its folders of stages and tables, deepest first, where left empty
+        from platesynth.study.run import OUTPUT_FOLDERS
+
+        for name in OUTPUT_FOLDERS:
+            if (directory / name).is_dir():
+                folders = [p for p in (directory / name).rglob("*") if p.is_dir()] + [directory / name]
+                for folder in sorted(folders, key=lambda p: len(p.parts), reverse=True):
+                    with contextlib.suppress(OSError):
+                        folder.rmdir()
     (directory / MARKER_NAME).unlink(missing_ok=True)
 
 

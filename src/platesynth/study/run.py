@@ -23,6 +23,7 @@ from platesynth.data.executor import Executor, SerialExecutor
 from platesynth.errors import PlatesynthError
 from platesynth.io import write_json
 from platesynth.outputs import claim_output
+from platesynth.report.html import REPORT_NAME
 from platesynth.study import cache
 from platesynth.study.radar import AXES, write_radars
 from platesynth.study.spec import REAL, StudySpec
@@ -33,9 +34,9 @@ SETTINGS_FILE = "study.json"
 RESULTS_FILE = "results.json"
 TEST_SET = "test"
 WAVES = (("render",), ("measure", "train"), ("evaluate",))
-OUTPUT_FILES = (SETTINGS_FILE, RESULTS_FILE, *(f"radar_{chart}.{suffix}" for chart in AXES
-                                               for suffix in ("svg", "png", "json")))
-"""The files a study writes at the top of its folder (``platesynth report`` adds ``report.html``)."""
+OUTPUT_FILES = (SETTINGS_FILE, RESULTS_FILE, REPORT_NAME, *(f"radar_{chart}.{suffix}" for chart in AXES
+                                                            for suffix in ("svg", "png", "json")))
+"""The files a study writes at the top of its folder, with the page ``platesynth report`` writes there."""
 OUTPUT_FOLDERS = (cache.STAGES_DIR, TABLES_DIR)
 """The folders a study writes (every file in them is the study's)."""
 
