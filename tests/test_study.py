@@ -149,6 +149,7 @@ CASES = [
     (lambda d: d["recipe"].update(patch="65x65"), "bad.yaml: recipe: patch 65x65 must be a positive multiple"),
     (lambda d: d["recipe"].update(model={"chanels": [8]}), "bad.yaml: recipe.model: chanels: unknown field"),
     (lambda d: d.update(reference="nowhere"), "reference: "),
+    (lambda d: d["evaluation"].update(images=d["reference"]), "PR8_plate3.png not found in"),
 ]
 
 

@@ -301,5 +301,29 @@ def check_inputs(spec: StudySpec, source: str) -> None:
     check("evaluation.masks", spec.evaluation.masks, list_items)
     check("real_training", spec.real_training, list_items)
     counts = spec.evaluation.counts
-    if counts is not None and not Path(counts).is_file():
+    if counts is not None:
+        check_counts(Path(counts), Path(spec.evaluation.images or "."), spec.plate, source)
+
+
+def check_counts(counts: Path, images: Path, plate: int, source: str) -> None:
+    """Refuse, in one line, a counts table that is missing, empty, all blank, names a well outside the plate or an
+    image missing from ``images``: found now rather than after every training."""
+    from platesynth.data.layout import read_counts_csv
+    from platesynth.segment.counts import plate_shape
+
+    if not counts.is_file():
         raise ParameterError(f"{source}: evaluation.counts: {counts}: no such file")
+    try:
+        records = read_counts_csv(counts)
+    except PlatesynthError as exc:
+        raise ParameterError(f"{source}: evaluation.counts: {exc}") from None
+    if not records or all(r.count is None for r in records):
+        raise ParameterError(f"{source}: evaluation.counts: {counts}: no counted well (nothing to score)")
+    rows, cols = plate_shape(plate)
+    for line, record in enumerate(records, start=2):
+        if record.row >= rows or record.col >= cols:
+            raise ParameterError(f"{source}: evaluation.counts: {counts}, line {line}: row {record.row}, col "
+                                 f"{record.col} lies outside a {plate}-well plate")
+        if not (images / record.image).is_file():
+            raise ParameterError(f"{source}: evaluation.counts: {counts}, line {line}: {record.image} not found in "
+                                 f"{images}")
