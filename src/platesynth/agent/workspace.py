@@ -23,7 +23,7 @@ class GuardrailError(PlatesynthError):
 class Limits:
     """What one request may ask for; the defaults suit a workstation (``platesynth mcp --help`` lists the options)."""
 
-    max_images: int = 200
+    max_images: int = 1000
     """Images per job: rendered, previewed, predicted, or read by a metric or an evaluation."""
     max_image_side: int = 2048
     """Longest side, in pixels, of an image rendered or previewed."""

@@ -25,7 +25,7 @@ def mcp_command(
     ] = None,
     host: Annotated[str, typer.Option("--host", help="http: the address to listen on.")] = "127.0.0.1",
     port: Annotated[int, typer.Option("--port", help="http: the port.")] = 8000,
-    max_images: Annotated[int, typer.Option("--max-images", help="Images per job (render, preview, predict, metrics).")] = 200,
+    max_images: Annotated[int, typer.Option("--max-images", help="Images per job (render, preview, predict, metrics).")] = 1000,
     max_image_side: Annotated[int, typer.Option("--max-image-side", help="Longest side of a rendered image, px.")] = 2048,
     max_jobs: Annotated[int, typer.Option("--max-jobs", help="Jobs (render, train) running at once.")] = 1,
     max_job_seconds: Annotated[float, typer.Option("--max-job-seconds", help="Seconds a job may run.")] = 3600.0,
