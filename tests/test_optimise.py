@@ -119,7 +119,18 @@ def test_space_file_ranges(tmp_path):
     path.write_text("stain.hue_deg: [250, 290]\nplaques.radius_mm: {range: [0.3, 1.5], log: true}\npost.noise: auto\n")
     space = load_space(path, load_config("low"))
     assert space.names == ["stain.hue_deg", "plaques.radius_mm", "post.noise"]
-    assert space.parameters[1].log and (space.parameters[2].low, space.parameters[2].high) == (0.0, 1.0)
+    assert space.parameters[1].log and (space.parameters[2].low, space.parameters[2].high) == (0.0, 0.25)
+
+
+def test_space_file_over_the_default_space(tmp_path):
+    path = tmp_path / "space.yaml"
+    path.write_text("all: auto\npost.noise: [0, 1]\nplate.tint: [0, 0.1]\n")
+    start = load_config("low")
+    space = load_space(path, start)
+    default = default_space(start)
+    assert space.names == default.names + ["plate.tint"]
+    noise = space.parameters[space.names.index("post.noise")]
+    assert (noise.low, noise.high) == (0.0, 1.0)
 
 
 def test_split_is_by_plate_seeded_and_balanced(tmp_path):

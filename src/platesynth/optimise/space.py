@@ -9,14 +9,15 @@ a mixture becomes the number ``v``), shifted back inside the parameter's valid r
 
 The default space (:func:`default_space`) holds every numeric and probability parameter of the sections that shape
 the look (:data:`SEARCHED_SECTIONS`) except those fixed by the photographs' set-up or matched to counts
-(:data:`LEFT_OUT`), vectors and fixed choices: a probability over its whole range [0, 1], a number within
-``narrow`` of its valid range on either side of the start's centre (on a log scale where the valid range spans at
-least :data:`LOG_DECADES` decades above zero). A space file (:func:`load_space`) names the parameters instead::
+(:data:`LEFT_OUT`), vectors and fixed choices, each within ``narrow`` of its valid range on either side of the
+start's centre (a probability's valid range is [0, 1]; on a log scale where the valid range spans at least
+:data:`LOG_DECADES` decades above zero). A space file (:func:`load_space`) names the parameters instead::
 
     stain.hue_deg: [250, 290]                       # the centre's range
     plaques.radius_mm: {range: [0.3, 1.5], log: true}
     post.noise: auto                                # the default range around the start
 
+``all: auto`` starts from the whole default space; the other entries then add parameters or replace their ranges.
 Every name and bound is checked against the catalogue with the messages of ``--set`` before the first trial.
 """
 
@@ -57,6 +58,10 @@ log scale."""
 
 AUTO = "auto"
 """The value of a space file's entry that asks for the default range."""
+
+ALL = "all"
+"""A space file's key that starts from the whole default space (``all: auto``); its other entries then add
+parameters or replace their ranges."""
 
 
 @dataclass(frozen=True)
@@ -252,8 +257,6 @@ def default_range(start: SceneConfig, dotted: str, narrow: float = NARROW) -> Se
     declared = _declared(dotted)
     lo, hi = declared["bounds"]
     integer = declared["kind"] == "integer"
-    if declared["kind"] == "probability":
-        return SearchParameter(dotted, float(lo), float(hi))
     c = min(max(centre(_value(start, dotted)), lo), hi)
     if _log_scale((lo, hi)):
         half = narrow * math.log10(hi / lo)
@@ -270,7 +273,7 @@ def default_range(start: SceneConfig, dotted: str, narrow: float = NARROW) -> Se
 
 def default_space(start: SceneConfig, narrow: float = NARROW) -> SearchSpace:
     """Every numeric and probability parameter of :data:`SEARCHED_SECTIONS` but :data:`LEFT_OUT`, vectors and
-    fixed choices, within ``narrow`` of its valid range around the start (probabilities over [0, 1]).
+    fixed choices, within ``narrow`` of its valid range around the start.
 
     Raises
     ------
@@ -341,7 +344,7 @@ def load_space(path: str | os.PathLike, start: SceneConfig, narrow: float = NARR
     ----------
     path : str or path-like
         A YAML mapping of dotted parameter names to ``[low, high]``, ``{range: [low, high], log: true}`` or
-        ``auto`` (also written ``~``).
+        ``auto`` (also written ``~``); ``all: auto`` first takes the whole default space.
     start : SceneConfig
         The start configuration (for ``auto`` ranges, and whose spreads the trials keep).
     narrow : float
@@ -362,10 +365,16 @@ def load_space(path: str | os.PathLike, start: SceneConfig, narrow: float = NARR
         got = "nothing" if not data else type(data).__name__
         raise ParameterError(f"{path}: expected a mapping of parameter names to ranges, e.g. stain.hue_deg: [250, 290]; "
                              f"got {got}")
-    parameters = []
+    parameters: dict[str, SearchParameter] = {}
+    if ALL in data:
+        if data[ALL] != AUTO:
+            raise ParameterError(f"{source}{ALL}: expected {ALL}: {AUTO} (the default space), got {data[ALL]!r}")
+        parameters = {p.name: p for p in default_space(start, narrow).parameters}
     for dotted, entry in data.items():
+        if dotted == ALL:
+            continue
         if isinstance(entry, dict) and "range" not in entry and "log" not in entry and "." not in str(dotted):
             raise ParameterError(f"{source}{dotted}: expected dotted parameter names (e.g. {dotted}.name: [low, high]), "
                                  "not sections")
-        parameters.append(_entry(str(dotted), entry, start, narrow, source))
-    return SearchSpace(tuple(parameters), start)
+        parameters[str(dotted)] = _entry(str(dotted), entry, start, narrow, source)
+    return SearchSpace(tuple(parameters.values()), start)
