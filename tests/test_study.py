@@ -150,6 +150,7 @@ CASES = [
     (lambda d: d["recipe"].update(model={"chanels": [8]}), "bad.yaml: recipe.model: chanels: unknown field"),
     (lambda d: d.update(reference="nowhere"), "reference: "),
     (lambda d: d["evaluation"].update(images=d["reference"]), "PR8_plate3.png not found in"),
+    (lambda d: d["recipe"].update(device="cuda:7"), "cuda"),
 ]
 
 

@@ -133,7 +133,8 @@ def _train_options(spec: StudySpec, data: list[str], mix: list[float] | None, se
     if train.patch[0] % multiple or train.patch[1] % multiple:
         raise ValueError(f"patch {train.patch[1]}x{train.patch[0]} must be a positive multiple of {multiple} on "
                          "both sides (the network's stride)")
-    return {"train": train.model_dump(mode="json"), "model": model.model_dump(mode="json"), "threads": recipe.threads}
+    return {"train": train.model_dump(mode="json"), "model": model.model_dump(mode="json"), "threads": recipe.threads,
+            "device": recipe.device}
 
 
 def plan_study(spec: StudySpec, out: str | os.PathLike) -> StudyPlan:
@@ -208,7 +209,7 @@ def plan_study(spec: StudySpec, out: str | os.PathLike) -> StudyPlan:
             except (ValueError, PlatesynthError) as exc:
                 raise ParameterError(f"{spec.source}: recipe: {' '.join(str(exc).split())}") from None
             depends = {"data": data_keys, "mix": mix, "train": {k: v for k, v in options["train"].items() if k != "data"},
-                       "model": options["model"]}
+                       "model": options["model"], "device": options["device"]}
             train_key = plan.add(Stage("train", cache.stage_key("train", depends), depends, options,
                                        needs=tuple(k for k in data_keys if not k.startswith("real:"))))
             evaluate_options = {
@@ -311,6 +312,9 @@ def check_study(spec: StudySpec) -> None:
 
     require("matplotlib", "study", "platesynth study")
     require("stardist", "segment", "platesynth study")
+    from platesynth.segment.model import select_device
+
+    select_device(spec.recipe.device)  # e.g. cuda asked for where there is none
     if spec.metrics.frechet:
         from platesynth.weights import resolve_weights
 

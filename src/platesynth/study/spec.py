@@ -130,6 +130,7 @@ class Recipe(_Strict):
     augment: bool = True
     tune_thresholds: bool = True
     threads: int = Field(1, ge=1, description="torch threads of one training")
+    device: str = Field("cpu", description="where models train: cpu, cuda, or auto (CUDA where available)")
     model: dict[str, Any] = Field(default_factory=dict, description="ModelConfig fields (architecture, working size)")
 
     @field_validator("patch", mode="before")

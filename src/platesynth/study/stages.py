@@ -176,15 +176,16 @@ def torch_threads(threads: int):
         torch.set_num_threads(before)
 
 
-def train_stage(directory: Path, train: dict[str, Any], model: dict[str, Any], threads: int = 1) -> dict[str, Any]:
-    """Train (or finish training) one model into ``directory/model`` with the study's recipe."""
+def train_stage(directory: Path, train: dict[str, Any], model: dict[str, Any], threads: int = 1,
+                device: str = "cpu") -> dict[str, Any]:
+    """Train (or finish training) one model into ``directory/model`` with the study's recipe, on ``device``."""
     from platesynth.segment.model import ModelConfig
     from platesynth.segment.train import TrainConfig
     from platesynth.segment.train import train as run_training
 
     with torch_threads(threads):
         summary = run_training(TrainConfig.model_validate(train), directory / MODEL_DIR, ModelConfig.model_validate(model),
-                               device="cpu")
+                               device=device)
     best = summary.best_val_loss
     return {
         "model": str(directory / MODEL_DIR),
