@@ -57,7 +57,7 @@ table{border-collapse:collapse;margin:6px 0 14px;font-size:13px;background:#fff}
 th,td{border:1px solid #ccc;padding:3px 8px}td.num{text-align:right;font-variant-numeric:tabular-nums}
 th{background:#eceff1}caption{text-align:left;font-weight:600;padding:4px 0}
 .plot{max-width:100%;height:auto;background:#fff;border:1px solid #ddd}
-.note{color:#666;font-size:13px}.crop img{max-width:128px}
+.note{color:#666;font-size:13px}.crop img{max-width:128px}.crop figcaption{max-width:128px}
 """
 
 
