@@ -247,6 +247,38 @@ def scatter_uri(rows: dict[str, list[dict[str, str]]]) -> str | None:
     return figure_uri(figure)
 
 
+def training_uri(directory: Path, results: dict[str, Any]) -> str | None:
+    """Training and validation loss per epoch of every arm's first replicate; None without any history."""
+    from platesynth.study.cache import load_result
+
+    histories = {}
+    for arm in results["arms"]:
+        stored = load_result(directory, "train", arm["replicates"][0]["keys"]["train"])
+        if stored and stored.get("history"):
+            histories[arm["label"]] = stored["history"]
+    if not histories:
+        return None
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    figure, ax = plt.subplots(figsize=(6.4, 3.8), dpi=100)
+    for number, (label, history) in enumerate(histories.items()):
+        colour = f"C{number % 10}"
+        epochs = [h["epoch"] for h in history]
+        ax.plot(epochs, [h["train_loss"] for h in history], color=colour, linestyle="--", linewidth=1)
+        if any(h.get("val_loss") is not None for h in history):
+            ax.plot(epochs, [h.get("val_loss") for h in history], color=colour, marker="o", markersize=3, label=label)
+        else:
+            ax.plot([], [], color=colour, label=label)
+    ax.set_xlabel("epoch")
+    ax.set_ylabel("loss (dashed: training, solid: validation)")
+    ax.legend(fontsize=8)
+    figure.tight_layout()
+    return figure_uri(figure)
+
+
 def _worst_wells(directory: Path, results: dict[str, Any]) -> str:
     from platesynth.study.cache import stage_dir
 
@@ -314,6 +346,9 @@ def study_report(directory: Path) -> tuple[str, str, list[str]]:
                             f'<img class="plot" src="{scatter}" alt="scatter of predicted against counted plaques">'
                             if scatter else '<p class="note">No counts evaluated.</p>', "counts"))
     sections.append(section("Worst wells", _worst_wells(directory, results), "worst"))
+    losses = training_uri(directory, results)
+    if losses:
+        sections.append(section("Training", f'<img class="plot" src="{losses}" alt="losses per epoch">', "training"))
     notes = sorted({f"{arm['label']}: {note}" for arm in results["arms"] for replicate in arm["replicates"]
                     for stage in ("measure", "evaluate") for note in ((replicate.get(stage) or {}).get("notes") or [])})
     failed = [f"{arm['label']} (seed {r['seed']}): {stage} not done" for arm in results["arms"]
