@@ -99,7 +99,7 @@ def test_the_study_page_loads_in_chromium_and_shows_tables_and_pictures(world, s
     images = int(re.search(r'data-images="(\d+)"', dom).group(1))
     assert images >= 3 + 2 * 4 * 2 + 2  # photos, samples plain and outlined, radar charts
     assert 'id="outlines"' in dom and 'class="outlined"' in dom
-    for section in ("samples", "tables", "radar", "counts", "worst", "training"):
+    for section in ("samples", "tables", "radar", "counts", "worst", "time", "training"):
         assert f'id="{section}"' in dom
 
     shot = tmp_path / "study.png"

@@ -346,6 +346,15 @@ def study_report(directory: Path) -> tuple[str, str, list[str]]:
                             f'<img class="plot" src="{scatter}" alt="scatter of predicted against counted plaques">'
                             if scatter else '<p class="note">No counts evaluated.</p>', "counts"))
     sections.append(section("Worst wells", _worst_wells(directory, results), "worst"))
+    timing = []
+    for arm in results["arms"]:
+        spent = [[r.get("seconds", {}).get(kind) for r in arm["replicates"]] for kind in ("render", "measure", "train",
+                                                                                         "evaluate")]
+        timing.append([arm["label"], len(arm["replicates"]),
+                       *(f"{sum(v for v in values if v is not None):.0f}" if any(v is not None for v in values)
+                         else "–" for values in spent)])
+    sections.append(section("Time spent (seconds of each stage, summed over seeds)",
+                            html_table(["arm", "seeds", "render", "measure", "train", "evaluate"], timing), "time"))
     losses = training_uri(directory, results)
     if losses:
         sections.append(section("Training", f'<img class="plot" src="{losses}" alt="losses per epoch">', "training"))

@@ -68,8 +68,9 @@ def stage_dir(root: str | os.PathLike, kind: str, key: str) -> Path:
     return Path(root) / STAGES_DIR / kind / key
 
 
-def load_result(root: str | os.PathLike, kind: str, key: str) -> dict[str, Any] | None:
-    """The stored result of a finished stage, or None where it has not finished (or its file is unreadable)."""
+def load_stored(root: str | os.PathLike, kind: str, key: str) -> dict[str, Any] | None:
+    """What a finished stage stored (``kind``, ``key``, ``depends``, ``seconds``, ``result``), or None where it
+    has not finished (or its file is unreadable)."""
     path = stage_dir(root, kind, key) / RESULT_NAME
     try:
         stored = json.loads(path.read_text(encoding="utf-8"))
@@ -77,7 +78,13 @@ def load_result(root: str | os.PathLike, kind: str, key: str) -> dict[str, Any] 
         return None
     if not isinstance(stored, dict) or stored.get("key") != key or not isinstance(stored.get("result"), dict):
         return None
-    return stored["result"]
+    return stored
+
+
+def load_result(root: str | os.PathLike, kind: str, key: str) -> dict[str, Any] | None:
+    """The stored result of a finished stage, or None where it has not finished."""
+    stored = load_stored(root, kind, key)
+    return None if stored is None else stored["result"]
 
 
 def finite(value: Any) -> Any:

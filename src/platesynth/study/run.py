@@ -94,6 +94,7 @@ class StudyResult:
     files: list[str] = field(default_factory=list)
     notes: list[str] = field(default_factory=list)
     seconds: float = 0.0
+    seconds_by_stage: dict[str, float | None] = field(default_factory=dict)
 
 
 def _manifest(spec: StudySpec, preset: str | None, config: str | None, overrides: dict[str, Any], seed: int,
@@ -237,9 +238,10 @@ def _wave(plan: StudyPlan, out: Path, kinds: tuple[str, ...], executor: Executor
     for stage in plan.stages.values():
         if stage.kind not in kinds:
             continue
-        stored = cache.load_result(out, stage.kind, stage.key)
+        stored = cache.load_stored(out, stage.kind, stage.key)
         if stored is not None:
-            done[stage.key] = stored
+            done[stage.key] = stored["result"]
+            result.seconds_by_stage[stage.key] = stored.get("seconds")
             result.cached.append(f"{stage.kind}:{stage.key}")
         elif all(need in done for need in stage.needs):
             todo.append(StageTask(stage.kind, stage.key, str(cache.stage_dir(out, stage.kind, stage.key)),
@@ -261,10 +263,11 @@ def _record(plan: StudyPlan, out: Path, record: StageRecord, result: StudyResult
     stage = plan.stages[record.key]
     cache.save_result(out, record.kind, record.key, stage.depends, record.result, record.seconds)
     done[record.key] = cache.finite(record.result)
+    result.seconds_by_stage[record.key] = round(record.seconds, 2)
     result.ran.append(name)
 
 
-def _describe(plan: StudyPlan, done: dict[str, dict[str, Any]]) -> dict[str, Any]:
+def _describe(plan: StudyPlan, done: dict[str, dict[str, Any]], seconds: dict[str, float | None]) -> dict[str, Any]:
     """What ``results.json`` holds: the study's settings and every replicate's stage keys and results."""
     arms = []
     for arm in plan.spec.arms:
@@ -273,6 +276,8 @@ def _describe(plan: StudyPlan, done: dict[str, dict[str, Any]]) -> dict[str, Any
             replicates.append({
                 "seed": rep.seed,
                 "keys": {"render": rep.render, "measure": rep.measure, "train": rep.train, "evaluate": rep.evaluate},
+                "seconds": {kind: seconds.get(key) for kind, key in (("render", rep.render), ("measure", rep.measure),
+                            ("train", rep.train), ("evaluate", rep.evaluate)) if key is not None},
                 "render": done.get(rep.render) if rep.render else None,
                 "measure": done.get(rep.measure) if rep.measure else None,
                 "train": _without_history(done.get(rep.train)),
@@ -379,7 +384,7 @@ def run_study(
                    and f"{s.kind}:{s.key}" not in result.failed]
         if skipped:
             result.notes.append(f"{len(skipped)} stage(s) not run because a stage they need failed")
-        described = _describe(plan, done)
+        described = _describe(plan, done, result.seconds_by_stage)
         write_json(out / RESULTS_FILE, described)
         result.tables = build_tables(described)
         result.files = [RESULTS_FILE, *write_tables(out, result.tables)]
