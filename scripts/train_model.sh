@@ -15,13 +15,12 @@ EPOCHS=${EPOCHS:-40}
 STEPS=${STEPS:-50}
 
 # preset, images, seed, overrides: rendered at the model's working size (512 px); fewer negative plates than the
-# preset's half, so that more training patches hold plaques, and plates framed from tight to loose (a plate's length
-# 0.9-1.21 of the image's width: some photos show the lid or the bench around the plate)
+# preset's half, so that more training patches hold plaques
 render() {
     platesynth render --out "$DATA/$1" --count "$2" --seed "$3" --preset "$1" --plate 12 --size 512x384 \
         --workers "$THREADS" "${@:4}"
 }
-render high 450 201 --set plaques.negative_plate=0.2 --set 'camera.plate_fill=[0.9,1.21]'
+render high 450 201 --set plaques.negative_plate=0.2
 render medium 150 202
 render diverse 150 204
 

@@ -42,10 +42,10 @@ def test_presets_load_and_sample_json_roundtrip(preset):
 # here changes every dataset rendered from these presets). Update only for a deliberate change of the sampling.
 SCENE_SHA256_SEED3 = {
     "diverse": "247cbedd3d5a73e8d3f9bce31d40c2f0b7a99fd4fa49c422796a5c4c4a874f66",
-    "high": "d81521777274b011ee851327fd73d26a51f1d389d1e98537cab15ae48c583ed4",
+    "high": "2d558c9e730b309c346f218cc5a7e2c5d73bc39aa615be836aa625b4dcb87be6",
     "lightbox12": "b762144c1c38b2fa9ef5105dad7645cc6d179f2b86aac9c8775b05bbb1336b5d",
     "low": "3dad07a3780e7983b4b069ca7d99057a3af31c7e7135a4bb4b0e8865b879ad2f",
-    "medium": "9f1ba59007b86b85eb8d7e3b3cb1cb568931a37bb2d05b3ec1f7fe009d35c983",
+    "medium": "d01f56015b15b673dd4a83feae10435e768f199e05a572a1a149c40fd015b23c",
 }
 
 

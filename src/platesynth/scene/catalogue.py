@@ -140,9 +140,10 @@ class PlaquesConfig(Section):
     clearness: Dist = number([0.95, 1.0], 0.0, 1.0, "", "fraction of stain removed inside a plaque")
     edge_bias: Dist = number([0.0, 0.3], 0.0, 1.0, "", "tendency of plaques to lie near the well's rim")
     max_overlap: Dist = number(1.0, 0.0, 1.0, "", "largest overlap of two plaques, fraction of the smaller radius")
-    max_coverage: Dist = number(0.8, 0.05, 5.0, "",
+    max_coverage: Dist = number(100.0, 0.05, 100.0, "",
                                 "largest share of a well's area its plaques cover together (sum of their discs); "
-                                "a crowded well's plaques shrink to fit, as plaques do that compete for cells")
+                                "a crowded well's plaques shrink to fit, as plaques do that compete for cells "
+                                "(the default, 100, never binds)")
     count_jitter: Dist = number(0.15, 0.0, 3.0, "",
                                 "sd of the log of a well's mean count around the dilution series (pipetting error)")
     max_radius: Dist = number(0.5, 0.05, 1.0, "", "largest plaque radius, fraction of the well's radius")
