@@ -14,7 +14,7 @@ from platesynth.scene.catalogue import parameter_table
 
 pytest.importorskip("optuna", reason="platesynth optimise needs Optuna: pip install 'platesynth[optimise]'")
 
-TINY = {"count": 3, "size": (128, 100), "eval_count": 3, "seed": 5}
+TINY = {"count": 3, "size": (128, 100), "eval_count": 3, "well_size": 48, "seed": 5}
 
 
 @pytest.fixture(scope="module")

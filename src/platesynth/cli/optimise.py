@@ -89,6 +89,7 @@ def optimise(
     eval_count: Annotated[
         int | None, typer.Option("--eval-count", help="Images of the final evaluation of start and best.")
     ] = None,
+    well_size: Annotated[int | None, typer.Option("--well-size", help="Side of the well crops, pixels.")] = None,
     check_fraction: Annotated[
         float | None, typer.Option("--check-fraction", help="Share of the photos kept out for checking.")
     ] = None,
@@ -129,6 +130,7 @@ def optimise(
         "size": parse_size(size) if size is not None else None,
         "compare_size": parse_size(compare_size) if compare_size is not None else None,
         "eval_count": eval_count,
+        "well_size": well_size,
         "check_fraction": check_fraction,
         "storage": storage,
     }

@@ -21,6 +21,7 @@ from platesynth.data.executor import Executor, SerialExecutor
 from platesynth.errors import OutputError, ParameterError, PlatesynthError, WeightsNotFoundError
 from platesynth.io import write_json
 from platesynth.limits import check_dataset_metrics, check_render
+from platesynth.metrics.wells import CROP_SIZE
 from platesynth.optimise import report as files
 from platesynth.optimise.objective import (
     TERMS,
@@ -122,6 +123,7 @@ def optimise(
     size: tuple[int, int] = SIZE,
     compare_size: tuple[int, int] | None = None,
     eval_count: int = EVAL_COUNT,
+    well_size: int = CROP_SIZE,
     check_fraction: float = CHECK_FRACTION,
     weights: dict[str, float] | None = None,
     multi_objective: bool = False,
@@ -165,6 +167,8 @@ def optimise(
         Size both renders and photos are resized to before measuring; default ``size``.
     eval_count : int
         Images of the final evaluation (fresh scenes), at least ``count``.
+    well_size : int
+        Side of the well crops (at least 32, for AlexNet).
     check_fraction : float
         Share of the photos kept for the check part.
     weights : dict, optional
@@ -219,6 +223,8 @@ def optimise(
         raise ParameterError(f"count must be >= 2 images per trial (the Fréchet distances need 2), got {count}")
     if eval_count < count:
         raise ParameterError(f"eval count must be at least the trials' count ({count}), got {eval_count}")
+    if well_size < 32:
+        raise ParameterError(f"well size must be at least 32 pixels (AlexNet's smallest input), got {well_size}")
     size = check_size(size)
     compare_size = check_size(compare_size) if compare_size is not None else size
     weights = check_weights(dict(weights or {}))
@@ -235,7 +241,7 @@ def optimise(
 
     resolve_weights("alexnet")
     inception = _inception_weights()
-    settings = MeasureSettings(compare_size=compare_size, inception_weights=inception)
+    settings = MeasureSettings(compare_size=compare_size, crop_size=well_size, inception_weights=inception)
     present = [t for t in TERMS if weights[t] > 0 and (t != "fid_inception" or inception is not None)]
     objectives = present if multi_objective else None
     if multi_objective and len(present) < 2:
@@ -260,6 +266,7 @@ def optimise(
         "size": list(size),
         "compare_size": list(compare_size),
         "eval_count": eval_count,
+        "well_size": well_size,
         "weights": weights,
         "objectives": objectives,
         "inception": inception is not None,
