@@ -12,8 +12,17 @@ from rich.table import Table
 from rich.text import Text
 
 from platesynth.cli._common import console, print_json, progress_bar, styled, user_errors
-from platesynth.cli.options import ConfigFile, Overrides, Preset, parse_overrides, parse_size
-from platesynth.data.executor import EXECUTORS, make_executor
+from platesynth.cli.options import (
+    ConfigFile,
+    ConnectTimeout,
+    ExecutorKind,
+    Overrides,
+    Preset,
+    Scheduler,
+    open_executor,
+    parse_overrides,
+    parse_size,
+)
 from platesynth.errors import ParameterError
 
 
@@ -103,13 +112,9 @@ def optimise(
         str | None, typer.Option("--storage", help="SQLAlchemy URL of the study (default: sqlite in --out).")
     ] = None,
     workers: Annotated[int, typer.Option("--workers", "-j", help="Trials evaluated at a time (local processes).")] = 1,
-    executor: Annotated[str, typer.Option("--executor", help=f"Where trials run: {' or '.join(EXECUTORS)}.")] = "local",
-    scheduler: Annotated[
-        str | None, typer.Option("--scheduler", help="Address of a running Dask scheduler (implies --executor dask).")
-    ] = None,
-    connect_timeout: Annotated[
-        float, typer.Option("--connect-timeout", help="Seconds to wait for the Dask scheduler.")
-    ] = 10.0,
+    executor: ExecutorKind = "local",
+    scheduler: Scheduler = None,
+    connect_timeout: ConnectTimeout = 10.0,
     compare: Annotated[
         list[str] | None, typer.Option("--compare", help="Also measure this preset in the report; repeatable.")
     ] = None,
@@ -121,8 +126,7 @@ def optimise(
     """Search the scene parameters for renders closer to real photos; resumes an interrupted run."""
     from platesynth.optimise import optimise as run_optimise
 
-    kind = "dask" if scheduler is not None else executor
-    pool = make_executor(kind, workers=workers, scheduler=scheduler, timeout=connect_timeout)
+    pool = open_executor(executor, workers, scheduler, connect_timeout)
     given = {  # options left out take the library's defaults
         "narrow": narrow,
         "timeout": timeout,

@@ -53,6 +53,28 @@ Overrides = Annotated[
     list[str] | None,
     typer.Option("--set", help="Override one parameter, e.g. --set plaques.radius_mm=[0.5,1.0]; repeatable."),
 ]
+def _executors_help() -> str:
+    from platesynth.data.executor import EXECUTORS
+
+    return f"Where the work runs: {' or '.join(EXECUTORS)}."
+
+
+ExecutorKind = Annotated[str, typer.Option("--executor", help=_executors_help())]
+Scheduler = Annotated[
+    str | None, typer.Option("--scheduler", help="Address of a running Dask scheduler (implies --executor dask).")
+]
+ConnectTimeout = Annotated[float, typer.Option("--connect-timeout", help="Seconds to wait for the Dask scheduler.")]
+
+
+def open_executor(executor: str, workers: int, scheduler: str | None, connect_timeout: float) -> Any:
+    """The executor that ``--executor``, ``--workers``, ``--scheduler`` and ``--connect-timeout`` ask for (a
+    scheduler's address implies Dask)."""
+    from platesynth.data.executor import make_executor
+
+    kind = "dask" if scheduler is not None else executor
+    return make_executor(kind, workers=workers, scheduler=scheduler, timeout=connect_timeout)
+
+
 Backend = Annotated[str, typer.Option("--backend", help="Renderer: raster (fast, numpy) or blender.")]
 Samples = Annotated[
     int | None,

@@ -14,18 +14,22 @@ from platesynth.cli.options import (
     Backend,
     BlenderDevice,
     ConfigFile,
+    ConnectTimeout,
     Engine,
+    ExecutorKind,
     Out,
     Overrides,
     Plate,
     Preset,
     Samples,
+    Scheduler,
     Seed,
+    open_executor,
     parse_overrides,
     parse_size,
 )
 from platesynth.data.batch import BatchSummary, build_manifest, render_dataset, render_item
-from platesynth.data.executor import EXECUTORS, make_executor
+from platesynth.data.executor import make_executor
 from platesynth.data.layout import Manifest, list_items, load_item
 from platesynth.data.writer import check_directory
 from platesynth.errors import ParameterError
@@ -90,13 +94,9 @@ def render(
     workers: Annotated[
         int, typer.Option("--workers", "-j", help="Local worker processes (or Dask LocalCluster workers).")
     ] = 1,
-    executor: Annotated[str, typer.Option("--executor", help=f"Where to render: {' or '.join(EXECUTORS)}.")] = "local",
-    scheduler: Annotated[
-        str | None, typer.Option("--scheduler", help="Address of a running Dask scheduler (implies --executor dask).")
-    ] = None,
-    connect_timeout: Annotated[
-        float, typer.Option("--connect-timeout", help="Seconds to wait for the Dask scheduler.")
-    ] = 10.0,
+    executor: ExecutorKind = "local",
+    scheduler: Scheduler = None,
+    connect_timeout: ConnectTimeout = 10.0,
     coco: Annotated[bool, typer.Option("--coco", help="Also write annotations.coco.json (wells and plaques).")] = False,
     overwrite: Annotated[
         bool, typer.Option("--overwrite", help="Replace a different dataset, or another kind of output, in --out.")
@@ -121,8 +121,7 @@ def render(
     claim = claim_output(
         out, "dataset", inputs=[config], overwrite=overwrite, check=lambda: check_directory(out, manifest, overwrite)
     )
-    kind = "dask" if scheduler is not None else executor
-    with claim, make_executor(kind, workers=workers, scheduler=scheduler, timeout=connect_timeout) as pool:
+    with claim, open_executor(executor, workers, scheduler, connect_timeout) as pool:
         claim.take()
         console.print(f"rendering {manifest.count} images into {out} on {pool.describe()}", highlight=False)
         summary = _render_with_progress(out, manifest, pool, overwrite)

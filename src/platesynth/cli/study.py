@@ -10,7 +10,7 @@ from rich.console import Console
 from rich.markdown import Markdown
 
 from platesynth.cli._common import console, print_json, progress_bar, styled, user_errors
-from platesynth.data.executor import EXECUTORS, make_executor
+from platesynth.cli.options import ConnectTimeout, ExecutorKind, Scheduler, open_executor
 
 
 def _progress() -> tuple[Any, Any]:
@@ -31,13 +31,9 @@ def study(
     study_file: Annotated[Path, typer.Argument(help="The study file (YAML; see docs/study.md).", metavar="STUDY.yaml")],
     out: Annotated[Path, typer.Option("--out", "-o", help="Output folder of the study (reused: done stages are kept).")],
     workers: Annotated[int, typer.Option("--workers", "-j", help="Stages run at a time (local processes).")] = 1,
-    executor: Annotated[str, typer.Option("--executor", help=f"Where stages run: {' or '.join(EXECUTORS)}.")] = "local",
-    scheduler: Annotated[
-        str | None, typer.Option("--scheduler", help="Address of a running Dask scheduler (implies --executor dask).")
-    ] = None,
-    connect_timeout: Annotated[
-        float, typer.Option("--connect-timeout", help="Seconds to wait for the Dask scheduler.")
-    ] = 10.0,
+    executor: ExecutorKind = "local",
+    scheduler: Scheduler = None,
+    connect_timeout: ConnectTimeout = 10.0,
     overwrite: Annotated[
         bool, typer.Option("--overwrite", help="Replace another kind of output in --out (its files only).")
     ] = False,
@@ -51,8 +47,7 @@ def study(
     from platesynth.study.tables import to_markdown
 
     spec = load_study(study_file)
-    kind = "dask" if scheduler is not None else executor
-    pool = make_executor(kind, workers=workers, scheduler=scheduler, timeout=connect_timeout)
+    pool = open_executor(executor, workers, scheduler, connect_timeout)
     bar, progress = _progress()
 
     def announce() -> None:
