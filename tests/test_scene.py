@@ -214,6 +214,9 @@ def test_bad_files_name_the_file(tmp_path):
         load_config(path=tmp_path / "missing.yaml")
     with pytest.raises(ParameterError, match="unknown preset 'hihg'"):
         load_config("hihg")
+    # presets are names: a path that would reach a YAML file beside or outside the presets is refused
+    with pytest.raises(ParameterError, match="presets are names, a configuration file goes through --config"):
+        load_config("../presets/high")
 
 
 def test_dump_config_roundtrips(tmp_path):

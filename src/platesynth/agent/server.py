@@ -269,22 +269,18 @@ def build_server(workspace: Workspace, limits: Limits | None = None) -> Platesyn
     # ------------------------------------------------------------------------------------------ scene and config
 
     def scene_config(preset: str | None, config: str | None, overrides: dict[str, Any] | None) -> SceneConfig:
-        from platesynth.cli.options import preset_name
         from platesynth.scene import load_config
 
-        preset_name(preset)
         return load_config(preset, read(config, what="config") if config else None, overrides or None)
 
     def manifest_for(
         preset: str | None, config: str | None, overrides: dict[str, Any] | None, seed: int, count: int,
         size: tuple[int, int], backend: str, coco: bool = False,
     ) -> Any:
-        from platesynth.cli.options import preset_name
         from platesynth.data.batch import build_manifest
 
         limits.check_images(count, "count")
         limits.check_size(*size, "size")
-        preset_name(preset)
         return build_manifest(
             preset=preset, config_file=read(config, what="config") if config else None, overrides=overrides or None,
             seed=seed, count=count, size=size, backend=backend, coco=coco,
@@ -477,19 +473,18 @@ def build_server(workspace: Workspace, limits: Limits | None = None) -> Platesyn
         """Search the scene parameters for renders closer to real photos (Optuna TPE on the realism metrics), as a
         job; the result names the best configuration (best.yaml, usable as `config`) and its metrics on photos
         the search never saw. Needs the AlexNet weights; resumes a stopped run."""
-        from platesynth.cli.options import preset_name
         from platesynth.io import list_images
         from platesynth.optimise import optimise as run_optimise
         from platesynth.optimise.run import COUNT, EVAL_COUNT, SIZE
         from platesynth.outputs import claim_output
+        from platesynth.scene.loading import check_preset_name
 
         target = write(out, what="out")
         photos = read(reference, what="reference")
         config_path = read(config, what="config") if config else None
         space_path = read(space, what="space") if space else None
-        preset_name(preset)
-        for name in compare:
-            preset_name(name)
+        for name in ([preset] if preset else []) + list(compare):
+            check_preset_name(name)  # before the first write; the search loads them later
         limits.check_images(len(list_images(photos)), "reference")
         limits.check_images(count or COUNT, "count")
         limits.check_images(eval_count or EVAL_COUNT, "eval_count")

@@ -19,24 +19,10 @@ Seed = Annotated[int, typer.Option("--seed", help="Dataset seed: image i gets a 
 
 
 def preset_name(value: str | None) -> str | None:
-    """Check that ``--preset`` names a shipped preset (a file goes through ``--config``); ``None`` passes.
+    """``--preset``'s check (:func:`platesynth.scene.loading.check_preset_name`); ``None`` passes."""
+    from platesynth.scene.loading import check_preset_name
 
-    Raises
-    ------
-    ParameterError
-        For anything but the name of a shipped preset (a path, a file name, an unknown name).
-    """
-    if value is None:
-        return None
-    from platesynth.scene.loading import list_presets
-
-    names = list_presets()
-    if value not in names:
-        hint = ""
-        if any(sep in value for sep in ("/", "\\", ".")) or Path(value).exists():
-            hint = "; presets are names, a configuration file goes through --config"
-        raise ParameterError(f"unknown preset {value!r}: available presets are {', '.join(names)}{hint}")
-    return value
+    return None if value is None else check_preset_name(value)
 
 
 Preset = Annotated[

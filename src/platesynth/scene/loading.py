@@ -127,6 +127,23 @@ def _apply_overrides(data: dict[str, Any], overrides: dict[str, Any]) -> dict[st
     return data
 
 
+def check_preset_name(name: str) -> str:
+    """Return ``name`` if it names a shipped preset; presets are names, never paths.
+
+    Raises
+    ------
+    ParameterError
+        For anything else: an unknown name, a file name or a path (those go through a configuration file).
+    """
+    names = list_presets()
+    if name not in names:
+        hint = ""
+        if any(sep in name for sep in ("/", "\\", ".")) or Path(name).exists():
+            hint = "; presets are names, a configuration file goes through --config"
+        raise ParameterError(f"unknown preset {name!r}: available presets are {', '.join(names)}{hint}")
+    return name
+
+
 def load_config(
     preset: str | None = None, path: str | Path | None = None, overrides: dict[str, Any] | None = None
 ) -> SceneConfig:
@@ -154,10 +171,7 @@ def load_config(
     data: dict[str, Any] = {}
     source = "configuration"
     if preset is not None:
-        preset_path = PRESET_DIR / f"{preset}.yaml"
-        if not preset_path.is_file():
-            raise ParameterError(f"unknown preset {preset!r}: available presets are {', '.join(list_presets())}")
-        data = _read_yaml(preset_path)
+        data = _read_yaml(PRESET_DIR / f"{check_preset_name(preset)}.yaml")
         data.setdefault("name", preset)
         source = f"preset {preset}"
     if path is not None:
