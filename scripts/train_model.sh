@@ -4,6 +4,7 @@
 #
 #   scripts/train_model.sh                       # renders 750 images into $DATA, trains into $MODEL
 #   DATA=/scratch/plates MODEL=/scratch/model THREADS=4 scripts/train_model.sh
+#   HIGH_CONFIG=my-look.yaml scripts/train_model.sh   # the high part with a configuration over the preset
 #
 # Thresholds (probability, NMS, countability) are tuned on held-out synthetic images only. Then, zero-shot on the
 # real plates, on the fit and check halves:  python benchmarks/zero_shot_counts.py --models "$MODEL"
@@ -13,6 +14,7 @@ MODEL=${MODEL:-runs/plaque12}
 THREADS=${THREADS:-2}
 EPOCHS=${EPOCHS:-40}
 STEPS=${STEPS:-50}
+HIGH_CONFIG=${HIGH_CONFIG:-}
 
 # preset, images, seed, overrides: rendered at the model's working size (512 px); fewer negative plates than the
 # preset's half, so that more training patches hold plaques
@@ -20,7 +22,7 @@ render() {
     platesynth render --out "$DATA/$1" --count "$2" --seed "$3" --preset "$1" --plate 12 --size 512x384 \
         --workers "$THREADS" "${@:4}"
 }
-render high 450 201 --set plaques.negative_plate=0.2
+render high 450 201 --set plaques.negative_plate=0.2 ${HIGH_CONFIG:+--config "$HIGH_CONFIG"}
 render medium 150 202
 render diverse 150 204
 
