@@ -14,8 +14,23 @@ from platesynth.errors import DatasetError, ParameterError
 from platesynth.segment.data import Augmentation, augment, make_targets, normalize_image, resize_labels
 from platesynth.segment.loss import branch_loss, outside_well_penalty, segmentation_loss
 from platesynth.segment.matching import match_instances
-from platesynth.segment.model import ModelConfig, StarDistTwoBranch, load_model, save_model, select_device
-from platesynth.segment.predict import BranchMaps, nms_polygons, polygons_to_mask
+from platesynth.segment.model import (
+    WELL_RESCALE_RANGE,
+    WELL_SIZE_TOLERANCE,
+    ModelConfig,
+    StarDistTwoBranch,
+    load_model,
+    save_model,
+    select_device,
+)
+from platesynth.segment.predict import (
+    BranchMaps,
+    Polygons,
+    nms_polygons,
+    polygon_diameters,
+    polygons_to_mask,
+    rescaled_long_side,
+)
 from platesynth.segment.targets import branch_targets, object_probability, star_distances
 
 TINY = ModelConfig(channels=(4, 8, 8), context_dilations=(2,), input_long_side=64)
@@ -199,3 +214,67 @@ def test_device_selection():
     if not torch.cuda.is_available():
         with pytest.raises(ParameterError, match="CUDA is not available"):
             select_device("cuda")
+
+
+def test_polygon_diameters_of_discs_and_squares():
+    n_rays = 32
+    dist = np.array([np.full(n_rays, 10.0), np.full(n_rays, 3.0)], np.float32)
+    polygons = Polygons(np.zeros((2, 2)), dist, np.ones(2, np.float32))
+    # a regular polygon of circumradius r has area n r^2 sin(2 pi / n) / 2
+    expected = 2 * np.sqrt(n_rays * dist[:, 0] ** 2 * np.sin(2 * np.pi / n_rays) / 2 / np.pi)
+    assert polygon_diameters(polygons) == pytest.approx(expected)
+    assert polygon_diameters(polygons)[0] == pytest.approx(20.0, rel=0.01)
+    # a 20 x 20 square seen from its centre by 4 rays through its corners: area 4 * (10 sqrt 2)^2 / 2 = 400
+    corner = 10 * np.sqrt(2)
+    square = Polygons(np.zeros((1, 2)), np.full((1, 4), corner, np.float32), np.ones(1, np.float32))
+    assert polygon_diameters(square) == pytest.approx([2 * np.sqrt(400 / np.pi)])
+    assert len(polygon_diameters(Polygons(np.zeros((0, 2)), np.zeros((0, 8)), np.zeros(0)))) == 0
+
+
+def test_rescaled_long_side_brings_wells_to_the_training_size():
+    def wells(diameter, n=12):
+        radius = diameter / 2 / np.sqrt(32 * np.sin(2 * np.pi / 32) / 2 / np.pi)
+        return Polygons(np.zeros((n, 2)), np.full((n, 32), radius, np.float32), np.ones(n, np.float32))
+
+    config = ModelConfig(input_long_side=512, well_diameter=100.0)
+    assert rescaled_long_side(config, wells(100)) is None
+    assert rescaled_long_side(config, wells(100 * (1 + WELL_SIZE_TOLERANCE) - 0.5)) is None  # within tolerance
+    assert rescaled_long_side(config, wells(80)) == 640  # wells too small: the image is enlarged by 100/80
+    assert rescaled_long_side(config, wells(125)) == 410
+    assert rescaled_long_side(config, wells(10)) == 512 * WELL_RESCALE_RANGE[1]  # clamped
+    assert rescaled_long_side(config, wells(80, n=0)) is None  # no well found
+    assert rescaled_long_side(ModelConfig(input_long_side=512), wells(80)) is None  # a model without the reference
+
+
+def test_prediction_runs_again_at_the_training_well_size(monkeypatch):
+    import platesynth.segment.predict as predict
+
+    model = StarDistTwoBranch(TINY.model_copy(update={"well_diameter": 40.0, "plate_format": 6}))
+    calls = []
+
+    def fake_maps(model, image, long_side=None):
+        # one well of diameter 20 working pixels at the working size, of 40 at twice that (as a real photo would)
+        side = long_side or model.config.input_long_side
+        scale = side / model.config.input_long_side
+        shape = (round(image.shape[0] * side / max(image.shape[:2])), round(image.shape[1] * side / max(image.shape[:2])))
+        calls.append(side)
+        maps = {}
+        for name, grid in (("wells", 4), ("plaques", 2)):
+            prob = np.zeros((-(-shape[0] // grid), -(-shape[1] // grid)), np.float32)
+            prob[prob.shape[0] // 2, prob.shape[1] // 2] = 0.9
+            radius = 10 * scale / np.sqrt(32 * np.sin(2 * np.pi / 32) / 2 / np.pi)
+            maps[name] = BranchMaps(prob, np.full(prob.shape + (32,), radius if name == "wells" else 2 * scale, np.float32), grid)
+        return maps, shape
+
+    monkeypatch.setattr(predict, "predict_maps", fake_maps)
+    image = np.zeros((96, 128, 3), np.uint8)
+    result = predict.predict_image(model, image, thresholds={"wells": (0.5, 0.3), "plaques": (0.5, 0.3)})
+    assert calls == [64, 128]  # the well measured 20 working pixels, the model learnt 40: once more at twice the size
+    # the masks come from the second pass, drawn at the image's own size: the well is 40 / 128 of its width across
+    assert result.wells.shape == (96, 128)
+    assert 2 * np.sqrt((result.wells > 0).sum() / np.pi) == pytest.approx(40, rel=0.05)
+
+    calls.clear()
+    within = StarDistTwoBranch(TINY.model_copy(update={"well_diameter": 21.0, "plate_format": 6}))
+    predict.predict_image(within, image, thresholds={"wells": (0.5, 0.3), "plaques": (0.5, 0.3)})
+    assert calls == [64]  # within the tolerance: one pass

@@ -23,7 +23,14 @@ from platesynth.segment.data import SegmentationDataset
 from platesynth.segment.loss import segmentation_loss
 from platesynth.segment.matching import evaluate_masks
 from platesynth.segment.model import ModelConfig, StarDistTwoBranch, UnfinishedModelError, load_model
-from platesynth.segment.train import CHECKPOINT_NAME, TrainConfig, split_items, train
+from platesynth.segment.train import (
+    CHECKPOINT_NAME,
+    TrainConfig,
+    mask_statistics,
+    one_standard_error_choice,
+    split_items,
+    train,
+)
 
 runner = CliRunner()
 TINY = ModelConfig(channels=(8, 12, 16), context_dilations=(2,), input_long_side=128)
@@ -266,3 +273,28 @@ def test_cli_bad_counts_and_images(rendered, tiny_model, tmp_path):
 
     result = invoke("predict", good, "--model", tmp_path / "no-model", "--out", tmp_path / "pred")
     assert result.exit_code == 1 and "config.json: no such file" in result.output
+
+
+def test_one_standard_error_choice():
+    # candidate 2 has the smallest mean error (1.0); its standard error is sd([0, 2, 0, 2]) / 2 = 0.577
+    errors = [[4, 4, 4, 4], [1, 2, 1, 2], [0, 2, 0, 2], [1, 1, 1, 2]]
+    assert one_standard_error_choice(errors, default=0) == 1  # 1.5 <= 1.0 + 0.577: the first within reach
+    assert one_standard_error_choice([[3, 3], [1, 1], [1, 1]], default=0) == 1  # no spread: the first best
+    assert one_standard_error_choice([[], []], default=1) == 1  # no countable well: the default
+
+
+def test_mask_statistics_and_the_trained_models_well_diameter(rendered, tiny_model):
+    items = list_items(rendered)
+    mean_plaques, diameter = mask_statistics(items, long_side=64)
+    counts, diameters = [], []
+    for item in items:
+        _, wells, plaques = load_item(item)
+        counts += RenderResult(np.zeros(wells.shape + (3,), np.uint8), wells, plaques, sort_wells(wells, 12)[1]).plaque_counts().values()
+        diameters += [2 * np.sqrt((wells == i).sum() / np.pi) * 64 / 128 for i in np.unique(wells) if i]
+    assert mean_plaques == pytest.approx(np.mean(counts))
+    assert diameter == pytest.approx(np.median(diameters))
+    assert 10 < diameter < 16  # 12-well plates filling a 64-pixel-wide frame: wells about 13 pixels across
+    # the model learns it from its training items at its working size (128 pixels)
+    config = load_model(tiny_model).config
+    train_items = split_items(items, 0.25, 0)[0]
+    assert config.well_diameter == pytest.approx(mask_statistics(train_items, 128)[1])

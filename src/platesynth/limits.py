@@ -436,28 +436,31 @@ _PREDICT_BYTES_PER_FLOAT = 3.0
 _NETWORK_BASE = 500 * _MB
 
 
-def working_pixels(config: Any, shape: Sequence[int]) -> int:
-    """Pixels of the network input for an image of ``shape`` (H, W, ...): resized to the working size, padded."""
-    scale = config.input_long_side / max(int(shape[0]), int(shape[1]), 1)
+def working_pixels(config: Any, shape: Sequence[int], long_side: int | None = None) -> int:
+    """Pixels of the network input for an image of ``shape`` (H, W, ...): resized so that its longest side is
+    ``long_side`` (default: the model's working size), padded."""
+    scale = (long_side or config.input_long_side) / max(int(shape[0]), int(shape[1]), 1)
     multiple = 2 ** (len(config.channels) - 1)
     rows, cols = (max(1, round(int(s) * scale)) for s in shape[:2])
     return (-(-rows // multiple) * multiple) * (-(-cols // multiple) * multiple)
 
 
-def prediction_bytes(config: Any, shape: Sequence[int]) -> int:
-    """Peak memory of predicting on one image of ``shape`` (H, W, ...): the network at the working size, and the
-    image, its normalised copy and the masks at the image's own size."""
+def prediction_bytes(config: Any, shape: Sequence[int], long_side: int | None = None) -> int:
+    """Peak memory of predicting on one image of ``shape`` (H, W, ...): the network with the image's longest side
+    at ``long_side`` (default: the working size), and the image, its normalised copy and the masks at the image's
+    own size."""
     pixels = int(shape[0]) * int(shape[1])
-    network = working_pixels(config, shape) * _network_floats_per_pixel(config) * _PREDICT_BYTES_PER_FLOAT
+    network = working_pixels(config, shape, long_side) * _network_floats_per_pixel(config) * _PREDICT_BYTES_PER_FLOAT
     return int(network + 60 * pixels + _NETWORK_BASE)
 
 
-def check_prediction(config: Any, shape: Sequence[int], name: str = "") -> None:
-    """Refuse a prediction on an image of ``shape`` above the memory limit."""
+def check_prediction(config: Any, shape: Sequence[int], name: str = "", long_side: int | None = None) -> None:
+    """Refuse a prediction on an image of ``shape`` above the memory limit (the network's input with its longest
+    side at ``long_side``, default the working size)."""
     what = f"{name}: prediction" if name else "prediction"
     require_memory(
-        prediction_bytes(config, shape),
-        f"{what} on {int(shape[1])}x{int(shape[0])} pixels (working size {config.input_long_side})",
+        prediction_bytes(config, shape, long_side),
+        f"{what} on {int(shape[1])}x{int(shape[0])} pixels (working size {long_side or config.input_long_side})",
     )
 
 

@@ -87,6 +87,17 @@ def tune_threshold(fractions: Sequence[float], countable: Sequence[bool]) -> flo
     return best
 
 
+def rendered_countable(item: Any) -> dict[int, bool]:
+    """Per well id of a rendered dataset item, whether a person would count it: its renderer neither lysed nor
+    emptied it (from the item's params; empty for an item without params, e.g. a hand-annotated photo)."""
+    from platesynth.data.layout import read_params
+
+    if item.params_path is None:
+        return {}
+    wells = read_params(item).get("scene", {}).get("wells", [])
+    return {int(well["id"]): not (well["lysed"] or well["emptied"]) for well in wells}
+
+
 def tune_on_items(items: Sequence[Any]) -> float:
     """:func:`tune_threshold` on rendered dataset items, whose params say which wells are lysed or emptied.
 
@@ -95,19 +106,19 @@ def tune_on_items(items: Sequence[Any]) -> float:
     items : sequence of DatasetItem
         Rendered items (image, true well mask and params with the scene); items without params are skipped.
     """
-    from platesynth.data.layout import load_item, read_params
+    from platesynth.data.layout import load_item
 
     shares, countable = [], []
     for item in items:
-        if item.params_path is None:
+        truth = rendered_countable(item)
+        if not truth:
             continue
-        scene = read_params(item).get("scene", {})
         image, wells, _ = load_item(item)
         fractions = stained_fractions(image, wells)
-        for well in scene.get("wells", []):
-            if well["id"] in fractions:
-                shares.append(fractions[well["id"]])
-                countable.append(not (well["lysed"] or well["emptied"]))
+        for well_id, is_countable in truth.items():
+            if well_id in fractions:
+                shares.append(fractions[well_id])
+                countable.append(is_countable)
     return tune_threshold(shares, countable)
 
 

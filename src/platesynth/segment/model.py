@@ -35,6 +35,13 @@ HISTORY_NAME = "history.json"
 """A training's losses per finished epoch."""
 
 
+WELL_SIZE_TOLERANCE = 0.1
+"""Relative difference between a photo's median well diameter and the model's ``well_diameter`` above which
+prediction runs again at the training images' scale (the training augmentation covers scales 0.8 to 1.25)."""
+WELL_RESCALE_RANGE = (0.5, 2.0)
+"""Smallest and largest factor on the working size that bringing wells to the training size may apply."""
+
+
 class UnfinishedModelError(DatasetError):
     """A model directory holds a training that has not finished (interrupted, or still running)."""
 
@@ -65,6 +72,10 @@ class ModelConfig(BaseModel):
         }
     )
     input_long_side: int = Field(512, ge=64, description="images are resized so that their longest side is this")
+    well_diameter: float | None = Field(
+        None, gt=0, description="median equivalent diameter of the training images' wells at the working size, in "
+        "pixels; prediction brings a photo whose wells differ from it by more than WELL_SIZE_TOLERANCE to this size "
+        "(platesynth.segment.predict; None: no rescaling, as for models trained before this field)")
     percentile_low: float = Field(1.0, ge=0, lt=100, description="intensity mapped to 0 (percentile over all channels)")
     percentile_high: float = Field(99.8, gt=0, le=100, description="intensity mapped to 1")
     plate_format: int = Field(12, description="wells per plate the model was trained for (grid shape for counting)")

@@ -5,6 +5,11 @@ multiple of the network's deepest stride and passed through the network. In each
 probability threshold are candidate polygons; StarDist's non-maximum suppression keeps, from the most probable
 down, those overlapping no kept polygon by more than the NMS threshold. The kept polygons are scaled back to the
 image's own size and drawn (more probable on top) into the instance mask.
+
+Photos are framed more loosely or tightly than the training images. A model that knows its training images' well
+size (``ModelConfig.well_diameter``) measures the wells it found; where their median diameter differs from it by
+more than ``WELL_SIZE_TOLERANCE``, the network runs again with the image resized so that the wells (and so the
+plaques) have the size the model learnt.
 """
 
 from __future__ import annotations
@@ -29,7 +34,7 @@ from platesynth.render.result import RenderResult
 from platesynth.segment.countability import judge_countable, stained_fractions
 from platesynth.segment.counts import sort_wells, write_count_table
 from platesynth.segment.data import normalize_image, pad_to_multiple, working_scale
-from platesynth.segment.model import BRANCHES, StarDistTwoBranch
+from platesynth.segment.model import BRANCHES, WELL_RESCALE_RANGE, WELL_SIZE_TOLERANCE, ModelConfig, StarDistTwoBranch
 
 
 @dataclass(frozen=True)
@@ -50,8 +55,18 @@ class Polygons:
     scores: np.ndarray
 
 
-def predict_maps(model: StarDistTwoBranch, image: np.ndarray) -> tuple[dict[str, BranchMaps], tuple[int, int]]:
-    """Run the network on one RGB image at the model's working size.
+def largest_long_side(config: ModelConfig) -> int:
+    """The longest side the network input may take in :func:`predict_image` (for memory checks before reading)."""
+    if config.well_diameter is None:
+        return config.input_long_side
+    return round(config.input_long_side * WELL_RESCALE_RANGE[1])
+
+
+def predict_maps(
+    model: StarDistTwoBranch, image: np.ndarray, long_side: int | None = None
+) -> tuple[dict[str, BranchMaps], tuple[int, int]]:
+    """Run the network on one RGB image resized so that its longest side is ``long_side`` (default: the model's
+    working size, ``input_long_side``).
 
     Returns
     -------
@@ -59,9 +74,10 @@ def predict_maps(model: StarDistTwoBranch, image: np.ndarray) -> tuple[dict[str,
     working_shape : (height, width) of the resized image the maps refer to.
     """
     config = model.config
-    check_prediction(config, image.shape)
+    long_side = long_side or config.input_long_side
+    check_prediction(config, image.shape, long_side=long_side)
     normalised = normalize_image(to_rgb_uint8(image), config.percentile_low, config.percentile_high)
-    scale = working_scale(image.shape, config.input_long_side)
+    scale = working_scale(image.shape, long_side)
     shape = (max(1, round(image.shape[0] * scale)), max(1, round(image.shape[1] * scale)))
     if shape != normalised.shape[:2]:
         normalised = resize(normalised, shape, order=1, anti_aliasing=scale < 1, preserve_range=True)
@@ -101,6 +117,27 @@ def nms_polygons(maps: BranchMaps, prob_thresh: float, nms_thresh: float) -> Pol
     return Polygons(points.astype(np.float64), dist, scores)
 
 
+def polygon_diameters(polygons: Polygons) -> np.ndarray:
+    """Equivalent diameters (of the disc of equal area) of star-convex polygons, in working pixels."""
+    n_rays = polygons.dist.shape[-1]
+    if len(polygons.dist) == 0:
+        return np.zeros(0)
+    areas = 0.5 * np.sin(2 * np.pi / n_rays) * (polygons.dist * np.roll(polygons.dist, -1, axis=-1)).sum(-1)
+    return 2 * np.sqrt(areas / np.pi)
+
+
+def rescaled_long_side(config: ModelConfig, wells: Polygons) -> int | None:
+    """The working size that brings the median of the found wells to the model's ``well_diameter``, or ``None``
+    where no rescaling is due (the model has no ``well_diameter``, no well was found, or the wells are within
+    ``WELL_SIZE_TOLERANCE`` of it). The factor is kept within ``WELL_RESCALE_RANGE``."""
+    if config.well_diameter is None or len(wells.dist) == 0:
+        return None
+    factor = config.well_diameter / float(np.median(polygon_diameters(wells)))
+    if abs(factor - 1) <= WELL_SIZE_TOLERANCE:
+        return None
+    return round(config.input_long_side * float(np.clip(factor, *WELL_RESCALE_RANGE)))
+
+
 def polygons_to_mask(polygons: Polygons, working_shape: tuple[int, int], shape: tuple[int, int]) -> np.ndarray:
     """Draw polygons found at ``working_shape`` into an int32 instance mask of ``shape`` (ids 1..n, more probable on top)."""
     if len(polygons.points) == 0:
@@ -136,13 +173,21 @@ def predict_image(
         uncountable (:mod:`platesynth.segment.countability`, with the model's threshold).
     """
     rgb = to_rgb_uint8(image)
-    maps, working_shape = predict_maps(model, rgb)
-    masks = {}
-    for name in BRANCHES:
-        branch = model.config.branches[name]
-        prob_thresh, nms_thresh = (thresholds or {}).get(name, (branch.prob_thresh, branch.nms_thresh))
-        polygons = nms_polygons(maps[name], prob_thresh, nms_thresh)
-        masks[name] = polygons_to_mask(polygons, working_shape, rgb.shape[:2])
+
+    def polygons_at(long_side: int | None) -> tuple[dict[str, Polygons], tuple[int, int]]:
+        maps, working_shape = predict_maps(model, rgb, long_side)
+        found = {}
+        for name in BRANCHES:
+            branch = model.config.branches[name]
+            prob_thresh, nms_thresh = (thresholds or {}).get(name, (branch.prob_thresh, branch.nms_thresh))
+            found[name] = nms_polygons(maps[name], prob_thresh, nms_thresh)
+        return found, working_shape
+
+    polygons, working_shape = polygons_at(None)
+    long_side = rescaled_long_side(model.config, polygons["wells"])
+    if long_side is not None:
+        polygons, working_shape = polygons_at(long_side)
+    masks = {name: polygons_to_mask(polygons[name], working_shape, rgb.shape[:2]) for name in BRANCHES}
     if masks["plaques"].max() > np.iinfo(np.uint16).max:
         raise ParameterError(f"{masks['plaques'].max()} plaques found; a uint16 plaque mask holds at most 65535")
     wells, info = sort_wells(masks["wells"], plate_format or model.config.plate_format, from_below)
@@ -188,7 +233,7 @@ def predict_files(
         raise DatasetError("no images given")
     _unique_stems(paths)
     for path in paths:
-        check_prediction(model.config, read_image(path).shape, str(path))
+        check_prediction(model.config, read_image(path).shape, str(path), largest_long_side(model.config))
     if before_writing is not None:
         before_writing()
     out_dir = Path(out_dir)

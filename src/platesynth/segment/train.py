@@ -33,8 +33,9 @@ from platesynth.errors import DatasetError, ParameterError, PlatesynthError
 from platesynth.io import atomic_path, image_size, write_json
 from platesynth.limits import check_training
 from platesynth.render.result import plaque_counts
+from platesynth.segment.countability import rendered_countable
 from platesynth.segment.countability import tune_on_items as tune_countability
-from platesynth.segment.data import Augmentation, MixSampler, SegmentationDataset
+from platesynth.segment.data import Augmentation, MixSampler, SegmentationDataset, working_scale
 from platesynth.segment.loss import segmentation_loss
 from platesynth.segment.matching import match_instances
 from platesynth.segment.model import (
@@ -53,7 +54,7 @@ from platesynth.segment.predict import Polygons, nms_polygons, polygons_to_mask,
 
 CHECKPOINT_NAME = "checkpoint.pt"
 PROB_THRESHOLDS = (0.1, 0.15, 0.2, 0.25, 0.3, 0.4, 0.5, 0.6, 0.7)
-NMS_THRESHOLDS = (0.2, 0.3, 0.4, 0.5)
+NMS_THRESHOLDS = (0.2, 0.3, 0.4, 0.5, 0.6, 0.7)
 
 
 class TrainConfig(BaseModel):
@@ -113,13 +114,27 @@ def split_items(items: Sequence[DatasetItem], val_fraction: float, seed: int) ->
     return [it for i, it in enumerate(items) if i not in val], [it for i, it in enumerate(items) if i in val]
 
 
-def mean_plaques_per_well(items: Sequence[DatasetItem]) -> float:
-    """Mean number of plaques per well over the items' masks (the trivial baseline of a count predictor)."""
+def mask_statistics(items: Sequence[DatasetItem], long_side: int) -> tuple[float, float | None]:
+    """What prediction needs to know of the training images, read from every item's masks in one pass.
+
+    Returns
+    -------
+    mean_plaques : mean number of plaques per well (the trivial baseline of a count predictor; NaN without wells).
+    well_diameter : median equivalent diameter of the wells once their image is resized so that its longest side
+        is ``long_side`` (``ModelConfig.well_diameter``; None without wells).
+    """
     counts: list[int] = []
+    diameters: list[np.ndarray] = []
     for item in items:
-        _, wells, plaques = load_item(item)
+        image, wells, plaques = load_item(item)
         counts += plaque_counts(wells, plaques).values()
-    return float(np.mean(counts)) if counts else math.nan
+        areas = np.bincount(wells.ravel())[1:]
+        diameters.append(2 * np.sqrt(areas[areas > 0] / np.pi) * working_scale(image.shape, long_side))
+    diameters_all = np.concatenate(diameters) if diameters else np.zeros(0)
+    return (
+        float(np.mean(counts)) if counts else math.nan,
+        float(np.median(diameters_all)) if len(diameters_all) else None,
+    )
 
 
 def _describe_data(config: TrainConfig, train_sets: list[list[DatasetItem]], val_sets: list[list[DatasetItem]]) -> dict[str, Any]:
@@ -251,18 +266,30 @@ def tune_thresholds(
     nms_thresholds: Sequence[float] = NMS_THRESHOLDS,
     tau: float = 0.5,
 ) -> dict[str, tuple[float, float]]:
-    """Per branch, the (probability, NMS) threshold pair with the highest mean AP at ``tau`` over the items.
+    """Per branch, the (probability, NMS) threshold pair tuned on the items.
 
-    Ties go to the first pair in the order of the candidate lists. Without items the model's thresholds stay.
-    NMS runs once per NMS threshold, at the lowest probability threshold: a polygon is only ever suppressed by a
-    more probable one, so the polygons kept at a higher threshold are those kept at the lowest that score above it
-    (up to the order of equal scores).
+    Wells: the pair with the highest mean AP at ``tau``. Plaques: the probability threshold of that best-AP pair,
+    then, at that probability, the NMS threshold for the plaques per countable well: the smallest one whose mean
+    absolute count error is within one standard error of the smallest error (the one-standard-error rule: among
+    thresholds the validation images cannot tell apart, the one that suppresses most). The probability threshold
+    decides which candidates are plaques at all, which AP measures; the NMS threshold decides how far neighbouring
+    plaques may overlap and still count as two, which a count needs and AP at ``tau`` hardly sees in crowded wells.
+
+    Ties go to the first candidate in the order of the lists. Without items the model's thresholds stay. NMS runs
+    once per NMS threshold, at the lowest probability threshold: a polygon is only ever suppressed by a more
+    probable one, so the polygons kept at a higher threshold are those kept at the lowest that score above it (up
+    to the order of equal scores).
     """
     if not items:
         return {name: (b.prob_thresh, b.nms_thresh) for name, b in model.config.branches.items()}
-    scores = {name: np.zeros((len(prob_thresholds), len(nms_thresholds))) for name in BRANCHES}
+    shape = (len(prob_thresholds), len(nms_thresholds))
+    scores = {name: np.zeros(shape) for name in BRANCHES}
+    count_errors: list[list[list[int]]] = [[[] for _ in nms_thresholds] for _ in prob_thresholds]
     for item in items:
         image, wells, plaques = load_item(item)
+        rendered = rendered_countable(item)
+        counted = [int(i) for i in np.unique(wells) if i != 0 and rendered.get(int(i), True)]
+        true_counts = plaque_counts(wells, plaques, counted)
         maps, working_shape = predict_maps(model, image)
         for name, truth in (("wells", wells), ("plaques", plaques)):
             for j, nms in enumerate(nms_thresholds):
@@ -272,11 +299,29 @@ def tune_thresholds(
                     polygons = Polygons(kept.points[above], kept.dist[above], kept.scores[above])
                     predicted = polygons_to_mask(polygons, working_shape, truth.shape)
                     scores[name][i, j] += match_instances(truth, predicted, tau).ap
+                    if name == "plaques":
+                        found = plaque_counts(wells, predicted, counted)
+                        count_errors[i][j] += [abs(found[w] - true_counts[w]) for w in counted]
     best = {}
     for name, table in scores.items():
         i, j = np.unravel_index(np.argmax(table), table.shape)
+        if name == "plaques":
+            j = one_standard_error_choice(count_errors[i], j)
         best[name] = (float(prob_thresholds[i]), float(nms_thresholds[j]))
     return best
+
+
+def one_standard_error_choice(errors: Sequence[Sequence[float]], default: int) -> int:
+    """Index of the first candidate whose mean error is within one standard error of the smallest mean error.
+
+    ``errors[k]`` are candidate ``k``'s errors over the same cases; ``default`` is returned where there are none.
+    """
+    if not errors or not len(errors[0]):
+        return int(default)
+    means = np.array([np.mean(e) for e in errors])
+    lowest = int(np.argmin(means))
+    spread = np.std(errors[lowest], ddof=1) / np.sqrt(len(errors[lowest])) if len(errors[lowest]) > 1 else 0.0
+    return int(np.flatnonzero(means <= means[lowest] + spread)[0])
 
 
 def train(
@@ -324,7 +369,7 @@ def train(
     sources = [number for number, items in enumerate(train_sets) for _ in items]
     val_items = [item for items in val_sets for item in items][: config.max_val_images]
     # reads every item once before anything is written: a broken dataset leaves no model directory behind
-    baseline = mean_plaques_per_well(train_items)
+    baseline, model_config.well_diameter = mask_statistics(train_items, model_config.input_long_side)
     for item in val_items:
         load_item(item)
     identity = _identity(config, model_config)
