@@ -39,6 +39,8 @@ Overrides = Annotated[
     list[str] | None,
     typer.Option("--set", help="Override one parameter, e.g. --set plaques.radius_mm=[0.5,1.0]; repeatable."),
 ]
+
+
 def _executors_help() -> str:
     from platesynth.data.executor import EXECUTORS
 

@@ -174,19 +174,18 @@ def predict_image(
     """
     rgb = to_rgb_uint8(image)
 
-    def polygons_at(long_side: int | None) -> tuple[dict[str, Polygons], tuple[int, int]]:
-        maps, working_shape = predict_maps(model, rgb, long_side)
-        found = {}
-        for name in BRANCHES:
-            branch = model.config.branches[name]
-            prob_thresh, nms_thresh = (thresholds or {}).get(name, (branch.prob_thresh, branch.nms_thresh))
-            found[name] = nms_polygons(maps[name], prob_thresh, nms_thresh)
-        return found, working_shape
+    def kept(maps: dict[str, BranchMaps], name: str) -> Polygons:
+        branch = model.config.branches[name]
+        prob_thresh, nms_thresh = (thresholds or {}).get(name, (branch.prob_thresh, branch.nms_thresh))
+        return nms_polygons(maps[name], prob_thresh, nms_thresh)
 
-    polygons, working_shape = polygons_at(None)
-    long_side = rescaled_long_side(model.config, polygons["wells"])
-    if long_side is not None:
-        polygons, working_shape = polygons_at(long_side)
+    maps, working_shape = predict_maps(model, rgb)
+    wells = kept(maps, "wells")
+    long_side = rescaled_long_side(model.config, wells)
+    if long_side is not None:  # the wells decide the scale; plaques are only looked for at the final one
+        maps, working_shape = predict_maps(model, rgb, long_side)
+        wells = kept(maps, "wells")
+    polygons = {"wells": wells, "plaques": kept(maps, "plaques")}
     masks = {name: polygons_to_mask(polygons[name], working_shape, rgb.shape[:2]) for name in BRANCHES}
     if masks["plaques"].max() > np.iinfo(np.uint16).max:
         raise ParameterError(f"{masks['plaques'].max()} plaques found; a uint16 plaque mask holds at most 65535")
