@@ -41,11 +41,11 @@ def test_presets_load_and_sample_json_roundtrip(preset):
 # sha256 of sample_scene(load_config(preset), 3).model_dump_json(): sampling must not change without intent (a change
 # here changes every dataset rendered from these presets). Update only for a deliberate change of the sampling.
 SCENE_SHA256_SEED3 = {
-    "diverse": "247cbedd3d5a73e8d3f9bce31d40c2f0b7a99fd4fa49c422796a5c4c4a874f66",
-    "high": "2d558c9e730b309c346f218cc5a7e2c5d73bc39aa615be836aa625b4dcb87be6",
-    "lightbox12": "b762144c1c38b2fa9ef5105dad7645cc6d179f2b86aac9c8775b05bbb1336b5d",
-    "low": "3dad07a3780e7983b4b069ca7d99057a3af31c7e7135a4bb4b0e8865b879ad2f",
-    "medium": "d01f56015b15b673dd4a83feae10435e768f199e05a572a1a149c40fd015b23c",
+    "diverse": "1159b0ee1f1d068b8dcdc69e715f00131bb3fbe028e4264fb53cc09ee0edd3de",
+    "high": "635f51193e9ae06e247f73b2c2fc28fd5dd392b17fb4972756479261d26cb7a3",
+    "lightbox12": "94156080ca84480e0011ebbcb63f45488edf2b3cc412872e264f9d69da109fd1",
+    "low": "7dda90ec1352464f0eefbbc86c2839bd09ae9c1aa97a5306a46530fea83a10ec",
+    "medium": "a7d4e7134b17fc494917d008d7836117b3ff1b52b85e378e8ae4db16848818a8",
 }
 
 

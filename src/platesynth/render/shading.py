@@ -55,6 +55,7 @@ FRAME_DTYPE = np.dtype(
         ("wall", np.float64),
         ("top_radius", np.float64),  # the walls' top edge, seen with parallax
         ("from_below", np.bool_),
+        ("top_edge_through_floor", np.float64),  # share of the top edge's outlines seen through a floor
         ("transmittance", np.float64),  # the plastic between the wells
         ("rim_darkness", np.float64),
         ("label_strength", np.float64),
@@ -130,8 +131,9 @@ def plate_signed_distance(u, v, f):
 @njit(cache=True, nogil=True, inline="always")
 def plastic(dist, top_dist, disc, signed, relief, f):
     """Share of the light the plastic passes: the floor or the deck, the walls' band and outlines, the embossing
-    (``relief``) and the skirt; ``disc`` is the pixel's coverage by the well's floor."""
-    behind_layer = 1.0 - disc if f.from_below else 1.0
+    (``relief``) and the skirt; ``disc`` is the pixel's coverage by the well's floor. Seen from below, the walls'
+    top edge lies behind the floor: only ``top_edge_through_floor`` of its outlines shows through it."""
+    behind_layer = 1.0 - disc * (1.0 - f.top_edge_through_floor) if f.from_below else 1.0
     line_half = 0.5 * OUTLINE_WIDTH_MM
     outlines = (
         OUTLINE_WEIGHTS[0] * ring(dist, f.radius, line_half, f.pixel_mm)

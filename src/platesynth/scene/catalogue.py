@@ -56,6 +56,9 @@ class PlateConfig(Section):
     tint: Dist = number([0.0, 0.04], 0.0, 0.3, "", "blue tint of the plastic (0 = neutral)")
     rim_darkness: Dist = number([0.25, 0.45], 0.0, 1.0, "", "darkness of the well-wall outlines")
     label_strength: Dist = number([0.35, 0.7], 0.0, 1.0, "", "contrast of the embossed labels and rings")
+    top_edge_through_floor: Dist = number(0.0, 0.0, 1.0, "",
+                                          "share of the walls' top-edge outlines seen through a well's floor from "
+                                          "below (an arc across the monolayer where parallax puts the edge)")
 
 
 class CameraConfig(Section):

@@ -58,6 +58,8 @@ class PlateLook(_Concrete):
     tint_rgb: RGB = Field(description="colour of the plastic (multiplies transmitted light), RGB 0..1")
     rim_darkness: float = Field(description="darkness of the well-wall outlines, 0..1")
     label_strength: float = Field(description="contrast of the embossed labels and rings, 0..1")
+    top_edge_through_floor: float = Field(
+        0.0, description="share of the walls' top-edge outlines seen through a well's floor from below, 0..1")
 
 
 class Stain(_Concrete):

@@ -143,6 +143,7 @@ def sample_scene(config: SceneConfig, seed: int) -> Scene:
         tint_rgb=(round(1.0 - 1.5 * tint, 4), round(1.0 - 0.6 * tint, 4), 1.0),
         rim_darkness=c.plate.draw("rim_darkness", rng),
         label_strength=c.plate.draw("label_strength", rng),
+        top_edge_through_floor=c.plate.draw("top_edge_through_floor", rng),
     )
 
     tilt = c.camera.draw("tilt_deg", rng)

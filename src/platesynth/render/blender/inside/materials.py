@@ -274,8 +274,9 @@ def blot_material(unevenness: PlateTexture) -> bpy.types.Material:
 
 
 def rim_material(well_radius: float) -> bpy.types.Material:
-    """The walls' bands and outlines: ink (the ``ink`` attribute), except where ``rim_hidden_inside`` is set and
-    the ray crossed the floors' plane (``z = 0``) within ``well_radius`` of the ring's ``rim_center``."""
+    """The walls' bands and outlines: ink (the ``ink`` attribute), faded towards white by the share
+    ``rim_hidden_inside`` where the ray crossed the floors' plane (``z = 0``) within ``well_radius`` of the ring's
+    ``rim_center``."""
     material, tree, out = _new_material("platesynth.rims")
     geometry = add(tree, "ShaderNodeNewGeometry")
     position, incoming = output(geometry, "Position"), output(geometry, "Incoming")

@@ -149,24 +149,26 @@ def _rims(
 ) -> None:
     """What the raster renderer draws of the walls, as films (image pass only): a slightly brighter band over
     the wall's thickness, and thin dark outlines at the wall's foot (radius, radius + wall) and top edge
-    (``TOP_EDGE_OFFSET_MM`` further out, + wall) at their heights. Seen from below, the top edge's outlines are hidden where the
-    ray has passed a well's floor (the raster renderer's ``behind_layer``)."""
+    (``TOP_EDGE_OFFSET_MM`` further out, + wall) at their heights. Seen from below, all but the plate look's
+    ``top_edge_through_floor`` of the top edge's outlines is hidden where the ray has passed a well's floor (the
+    raster renderer's ``behind_layer``)."""
     plate_data = scene_data["plate"]
     radius, wall, depth = (float(plate_data[k]) for k in ("well_radius_mm", "wall_mm", "well_depth_mm"))
     darkness = float(scene_data["plate_look"]["rim_darkness"])
     from_below = float(view["toward_camera"]) < 0
+    hidden_by_floor = (1.0 - float(scene_data["plate_look"]["top_edge_through_floor"])) if from_below else 0.0
     centres = _world_xy([w["center_mm"] for w in wells])
     line = OUTLINE_WIDTH_MM
     foot_inner, foot_outer, top_inner, top_outer = OUTLINE_WEIGHTS
     top = radius + TOP_EDGE_OFFSET_MM
     # just behind the floors' film, each ring at its own height: overlapping films must not coincide
     step = -float(view["toward_camera"]) * 0.05
-    rings = [  # inner radius, outer radius, height, colour, hidden behind the floors
-        (radius, radius + wall, step, 1.0 + WALL_BAND_GAIN, False),
-        (radius - line / 2, radius + line / 2, 2 * step, 1.0 - foot_inner * darkness, False),
-        (radius + wall - line / 2, radius + wall + line / 2, 3 * step, 1.0 - foot_outer * darkness, False),
-        (top - line / 2, top + line / 2, depth - 0.05, 1.0 - top_inner * darkness, from_below),
-        (top + wall - line / 2, top + wall + line / 2, depth - 0.05, 1.0 - top_outer * darkness, from_below),
+    rings = [  # inner radius, outer radius, height, colour, share hidden behind the floors
+        (radius, radius + wall, step, 1.0 + WALL_BAND_GAIN, 0.0),
+        (radius - line / 2, radius + line / 2, 2 * step, 1.0 - foot_inner * darkness, 0.0),
+        (radius + wall - line / 2, radius + wall + line / 2, 3 * step, 1.0 - foot_outer * darkness, 0.0),
+        (top - line / 2, top + line / 2, depth - 0.05, 1.0 - top_inner * darkness, hidden_by_floor),
+        (top + wall - line / 2, top + wall + line / 2, depth - 0.05, 1.0 - top_outer * darkness, hidden_by_floor),
     ]
     n = len(centres)
     rims = geometry.annuli(
@@ -178,7 +180,7 @@ def _rims(
         {
             "ink": np.repeat(np.array([[r[3]] * 3 for r in rings]), n, axis=0),
             "rim_center": _with_z(np.concatenate([centres] * len(rings)), 0.0),
-            "rim_hidden_inside": np.repeat([float(r[4]) for r in rings], n),
+            "rim_hidden_inside": np.repeat([r[4] for r in rings], n),
         },
     )
     rims.data.materials.append(materials.rim_material(radius))
