@@ -30,6 +30,7 @@ from platesynth.segment.train import (
     one_standard_error_choice,
     split_items,
     train,
+    validation_items,
 )
 
 runner = CliRunner()
@@ -281,6 +282,13 @@ def test_one_standard_error_choice():
     assert one_standard_error_choice(errors, default=0) == 1  # 1.5 <= 1.0 + 0.577: the first within reach
     assert one_standard_error_choice([[3, 3], [1, 1], [1, 1]], default=0) == 1  # no spread: the first best
     assert one_standard_error_choice([[], []], default=1) == 1  # no countable well: the default
+
+
+def test_validation_items_take_each_source_in_turn():
+    sources = [["h1", "h2", "h3", "h4"], ["m1"], ["d1", "d2"]]
+    assert validation_items(sources, 4) == ["h1", "m1", "d1", "h2"]  # every source before a second of any
+    assert validation_items(sources, 99) == ["h1", "m1", "d1", "h2", "d2", "h3", "h4"]  # all, none twice
+    assert validation_items([[], ["m1"]], 3) == ["m1"]
 
 
 def test_mask_statistics_and_the_trained_models_well_diameter(rendered, tiny_model):

@@ -101,7 +101,7 @@ def train_command(
     patch: Annotated[str, typer.Option("--patch", help="Training patch HEIGHTxWIDTH in working pixels.")] = "256x256",
     learning_rate: Annotated[float, typer.Option("--lr", help="Adam learning rate (cosine decay to 5%).")] = 1e-3,
     val_fraction: Annotated[float, typer.Option("--val-fraction", help="Fraction of each dataset held out.")] = 0.1,
-    max_val: Annotated[int, typer.Option("--max-val", help="At most this many validation images are evaluated.")] = 24,
+    max_val: Annotated[int, typer.Option("--max-val", help="At most this many validation images are evaluated, taken from the datasets in turn.")] = 24,
     seed: Annotated[int, typer.Option("--seed", help="Seed of the split, initial weights, sampling and augmentation.")] = 0,
     augment: Annotated[bool, typer.Option("--augment/--no-augment", help="Flips, rotations, scale, intensity, noise.")] = True,
     within_well: Annotated[float, typer.Option("--within-well", help="Weight of the penalty on plaques outside wells.")] = 0.0,

@@ -15,6 +15,7 @@ tensors and plain data only and is read with ``weights_only=True``
 
 from __future__ import annotations
 
+import itertools
 import json
 import math
 import os
@@ -70,7 +71,7 @@ class TrainConfig(BaseModel):
     patch: tuple[int, int] = Field((256, 256), description="training patch (height, width) in working pixels")
     learning_rate: float = Field(1e-3, gt=0, description="Adam's learning rate, decayed to 5% along a cosine")
     val_fraction: float = Field(0.1, ge=0, lt=1, description="images of each dataset held out for validation")
-    max_val_images: int = Field(24, ge=1, description="the first this many held-out images (in data order) are evaluated")
+    max_val_images: int = Field(24, ge=1, description="at most this many held-out images are evaluated, taken from the datasets in turn")
     seed: int = Field(0, ge=0)
     augment: bool = True
     lambda_dist: float = Field(0.2, ge=0, description="weight of the distance loss (StarDist: 0.2)")
@@ -112,6 +113,13 @@ def split_items(items: Sequence[DatasetItem], val_fraction: float, seed: int) ->
     order = np.random.default_rng(seed).permutation(len(items))
     val = set(order[:n_val].tolist())
     return [it for i, it in enumerate(items) if i not in val], [it for i, it in enumerate(items) if i in val]
+
+
+def validation_items(val_sets: Sequence[Sequence[DatasetItem]], limit: int) -> list[DatasetItem]:
+    """At most ``limit`` held-out items, taken from each dataset's in turn, so that every source is validated on
+    (and the thresholds tuned on it) however small ``limit`` is."""
+    interleaved = [item for group in itertools.zip_longest(*val_sets) for item in group if item is not None]
+    return interleaved[:limit]
 
 
 def mask_statistics(items: Sequence[DatasetItem], long_side: int) -> tuple[float, float | None]:
@@ -367,7 +375,7 @@ def train(
     train_sets, val_sets = [s[0] for s in splits], [s[1] for s in splits]
     train_items = [item for items in train_sets for item in items]
     sources = [number for number, items in enumerate(train_sets) for _ in items]
-    val_items = [item for items in val_sets for item in items][: config.max_val_images]
+    val_items = validation_items(val_sets, config.max_val_images)
     # reads every item once before anything is written: a broken dataset leaves no model directory behind
     baseline, model_config.well_diameter = mask_statistics(train_items, model_config.input_long_side)
     for item in val_items:
