@@ -42,7 +42,7 @@ def test_presets_load_and_sample_json_roundtrip(preset):
 # here changes every dataset rendered from these presets). Update only for a deliberate change of the sampling.
 SCENE_SHA256_SEED3 = {
     "diverse": "1159b0ee1f1d068b8dcdc69e715f00131bb3fbe028e4264fb53cc09ee0edd3de",
-    "high": "635f51193e9ae06e247f73b2c2fc28fd5dd392b17fb4972756479261d26cb7a3",
+    "high": "a3b9a8a140ed4a0fe4e5980062b191c98d1f67e35e16e4cd7cd35aba2c162349",
     "lightbox12": "94156080ca84480e0011ebbcb63f45488edf2b3cc412872e264f9d69da109fd1",
     "low": "7dda90ec1352464f0eefbbc86c2839bd09ae9c1aa97a5306a46530fea83a10ec",
     "medium": "a7d4e7134b17fc494917d008d7836117b3ff1b52b85e378e8ae4db16848818a8",

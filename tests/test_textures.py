@@ -32,7 +32,8 @@ def test_the_unevenness_grid_covers_the_plate_in_cells_of_half_the_scale():
 
 
 def test_the_fibre_grid_exists_only_when_a_well_is_lysed():
-    lysed = sample_scene(load_config("high", overrides={"plaques.lysis_count": 1}), 1000)
+    # a plate with plaques whose every well holding more than one is lysed
+    lysed = sample_scene(load_config("high", overrides={"plaques.lysis_count": 1, "plaques.negative_plate": 0.0}), 1000)
     intact = sample_scene(load_config("high", overrides={"plaques.negative_plate": 1.0}), 1000)
     assert any(w.lysed for w in lysed.wells) and not any(w.lysed for w in intact.wells)
     assert scene_textures(lysed).fibre_grid is not None
