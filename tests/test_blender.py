@@ -13,6 +13,7 @@ import pytest
 from scipy import ndimage
 from typer.testing import CliRunner
 
+from _geometry import distance_to_top_edges, pixel_centres_mm
 from platesynth.errors import ParameterError
 from platesynth.render.blender import (
     BlenderScriptError,
@@ -186,9 +187,7 @@ def test_masks_are_exact_integers_and_agree_with_the_raster_renderer(rendered):
 def test_no_well_id_spills_outside_its_well(rendered):
     scene, blender, _ = rendered
     view = camera_view(scene, *SIZE)
-    xs, ys = np.meshgrid(np.arange(SIZE[0]) + 0.5, np.arange(SIZE[1]) + 0.5)
-    plate = np.einsum("ij,jhw->ihw", view.px_to_plate, np.stack([xs, ys, np.ones_like(xs)]))
-    u, v = plate[0] / plate[2], plate[1] / plate[2]  # plate mm of every pixel centre
+    u, v = pixel_centres_mm(view)
     pixel_mm = 1.0 / view.px_per_mm
     for well in scene.wells:
         inside = blender.wells == well.id
@@ -307,9 +306,7 @@ def test_the_skirt_is_shaded_as_in_the_raster_renderer(rendered):
     reads the same signed distance to the outline)."""
     scene, blender, raster = rendered
     view = camera_view(scene, *SIZE)
-    ys, xs = np.mgrid[0 : SIZE[1], 0 : SIZE[0]] + 0.5
-    mapped = np.einsum("ij,jhw->ihw", view.px_to_plate, np.stack([xs, ys, np.ones_like(xs)]))
-    u, v = mapped[0] / mapped[2], mapped[1] / mapped[2]
+    u, v = pixel_centres_mm(view)
     plate = scene.plate
     qx = np.abs(u - plate.length_mm / 2) - (plate.length_mm / 2 - plate.corner_radius_mm)
     qy = np.abs(v - plate.width_mm / 2) - (plate.width_mm / 2 - plate.corner_radius_mm)
@@ -327,12 +324,10 @@ def test_the_walls_top_edge_through_the_floor_is_the_raster_renderers(pool):
     Blender (the rim films' share hidden behind the floors) as in the raster renderer. Blender places the edge in
     3D, the raster renderer with a parallax about the camera's axis: the arcs lie up to two pixels apart, so the
     darkening is compared over a band around them."""
-    from test_raster import _distance_to_top_edges
-
     size = (480, 360)
     settings = {"plaques.negative_plate": 1.0, "camera.distance_mm": 180.0, "wells.emptied": 0.0, "post.jpeg": 0.0}
     hidden, shown = (sample_scene(load_config("high", overrides=settings | {"plate.top_edge_through_floor": share}), 6) for share in (0.0, 1.0))
-    to_edge, on_floor, pixel_mm = _distance_to_top_edges(shown, size)
+    to_edge, on_floor, pixel_mm = distance_to_top_edges(shown, size)
     band = on_floor & (to_edge < 3 * pixel_mm)
     darkening = {}
     for name, draw in (("raster", render_raster), ("blender", lambda s, z: render_blender(s, z, samples=SAMPLES, pool=pool))):

@@ -5,11 +5,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from _geometry import distance_to_top_edges
 from platesynth.errors import ParameterError, ShapeMismatchError
 from platesynth.render import postprocess as pp
 from platesynth.render import render
 from platesynth.render.masks import clean_isolated_pixels
-from platesynth.render.raster import camera_view, render_raster, wells_in_view
+from platesynth.render.raster import camera_view, render_raster
 from platesynth.render.result import plaque_counts
 from platesynth.scene import Scene, load_config, sample_scene
 from platesynth.scene.concrete import Plaque
@@ -219,25 +220,6 @@ def test_plaque_counts_match_masks_for_sampled_scenes():
     assert sum(counts.values()) == len(np.unique(result.plaques)) - 1
 
 
-def _distance_to_top_edges(scene: Scene, size: tuple[int, int]) -> tuple[np.ndarray, np.ndarray, float]:
-    """Per pixel: the distance (mm) to the nearest outline of the wells' top edge as the camera sees it, whether the pixel
-    lies on a floor (1 px inside it), and the pixel size (mm)."""
-    view = camera_view(scene, *size)
-    wells, top_centres, top_radius = wells_in_view(scene, view)
-    ys, xs = np.mgrid[0 : size[1], 0 : size[0]] + 0.5
-    mapped = np.einsum("ij,jhw->ihw", view.px_to_plate, np.stack([xs, ys, np.ones_like(xs)]))
-    u, v = mapped[0] / mapped[2], mapped[1] / mapped[2]
-    pixel_mm = 1.0 / view.px_per_mm
-    to_edge = np.full(u.shape, np.inf)
-    on_floor = np.zeros(u.shape, dtype=bool)
-    for well, (tx, ty) in zip(wells, top_centres, strict=True):
-        off_centre = np.hypot(u - tx, v - ty)
-        for edge in (top_radius, top_radius + scene.plate.wall_mm):  # the edge's inner and outer outline
-            to_edge = np.minimum(to_edge, np.abs(off_centre - edge))
-        on_floor |= np.hypot(u - well.center_mm[0], v - well.center_mm[1]) < scene.plate.well_radius_mm - pixel_mm
-    return to_edge, on_floor, pixel_mm
-
-
 def test_the_walls_top_edge_shows_through_the_floor_as_much_as_asked():
     """Seen from below, ``plate.top_edge_through_floor`` draws the walls' top edge as a dark arc across the
     monolayer and changes nothing else: not the masks, not a pixel away from the edge."""
@@ -249,7 +231,7 @@ def test_the_walls_top_edge_shows_through_the_floor_as_much_as_asked():
     assert hidden.camera.from_below and shown.plate_look.top_edge_through_floor == 1.0
     before, after = render(hidden, size), render(shown, size)
     assert np.array_equal(before.wells, after.wells)
-    to_edge, on_floor, pixel_mm = _distance_to_top_edges(shown, size)
+    to_edge, on_floor, pixel_mm = distance_to_top_edges(shown, size)
     darker = before.image.astype(np.float64).mean(axis=2) - after.image.astype(np.float64).mean(axis=2)
     arc = on_floor & (to_edge < 0.5 * pixel_mm)
     away = to_edge > 6 * pixel_mm  # beyond the reach of the blur, sharpening and colour fringes
