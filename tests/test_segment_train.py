@@ -25,10 +25,13 @@ from platesynth.segment.matching import evaluate_masks
 from platesynth.segment.model import ModelConfig, StarDistTwoBranch, UnfinishedModelError, load_model
 from platesynth.segment.train import (
     CHECKPOINT_NAME,
+    ThresholdScores,
     TrainConfig,
+    choose_thresholds,
     mask_statistics,
     one_standard_error_choice,
     split_items,
+    threshold_scores,
     train,
     validation_items,
 )
@@ -282,6 +285,49 @@ def test_one_standard_error_choice():
     assert one_standard_error_choice(errors, default=0) == 1  # 1.5 <= 1.0 + 0.577: the first within reach
     assert one_standard_error_choice([[3, 3], [1, 1], [1, 1]], default=0) == 1  # no spread: the first best
     assert one_standard_error_choice([[], []], default=1) == 1  # no countable well: the default
+
+
+def test_choose_thresholds():
+    mean_ap = {"wells": np.array([[0.2, 0.9, 0.4], [0.1, 0.3, 0.95]]), "plaques": np.array([[0.5, 0.6, 0.4], [0.3, 0.2, 0.1]])}
+    # predicted minus true plaques in four wells per (probability, NMS): the plaques' best AP is at probability 0.3
+    count_errors = np.array([
+        [[-4, -4, -4, -4], [-1, -2, 1, -2], [0, 2, 0, -2]],
+        [[0, 0, 0, 0], [0, 0, 0, 0], [0, 0, 0, 0]],
+    ], float)
+    scores = ThresholdScores((0.3, 0.5), (0.3, 0.5, 0.7), mean_ap, count_errors)
+    # |errors| at 0.3: means 4, 1.5, 1.0; 1.5 is within one standard error (0.577) of 1.0, so NMS 0.5
+    assert choose_thresholds(scores) == {"wells": (0.5, 0.7), "plaques": (0.3, 0.5)}
+
+
+def test_threshold_scores_match_drawing_each_pair(rendered, tiny_model):
+    """The scores read off one drawing per NMS threshold equal those of drawing each pair's polygons alone."""
+    from platesynth.render.result import plaque_counts
+    from platesynth.segment.countability import rendered_countable
+    from platesynth.segment.matching import match_instances
+    from platesynth.segment.predict import nms_polygons, polygons_to_mask, predict_maps
+
+    model = load_model(tiny_model)
+    items = list_items(rendered)[:2]
+    # the barely trained model's probabilities lie in a narrow band: candidate thresholds inside it
+    band = predict_maps(model, load_item(items[0])[0])[0]["plaques"].prob
+    probs, nms = tuple(float(p) for p in np.percentile(band, [50, 90, 99])), (0.3, 0.5)
+    scores = threshold_scores(model, items, probs, nms)
+    mean_ap = np.zeros((3, 2))
+    errors = [[[] for _ in nms] for _ in probs]
+    for item in items:
+        image, wells, plaques = load_item(item)
+        counted = [w for w, ok in rendered_countable(item).items() if ok]
+        maps, working_shape = predict_maps(model, image)
+        for i, prob in enumerate(probs):
+            for j, nms_thresh in enumerate(nms):
+                predicted = polygons_to_mask(nms_polygons(maps["plaques"], prob, nms_thresh), working_shape, wells.shape)
+                mean_ap[i, j] += match_instances(plaques, predicted, 0.5).ap / len(items)
+                found, true = plaque_counts(wells, predicted, counted), plaque_counts(wells, plaques, counted)
+                errors[i][j] += [found[w] - true[w] for w in counted]
+    assert np.abs(errors).sum() > 0 and len(np.unique(np.array(errors).sum(axis=-1))) > 1  # the thresholds matter
+    np.testing.assert_array_equal(scores.count_errors, np.array(errors, float))
+    np.testing.assert_allclose(scores.mean_ap["plaques"], mean_ap, rtol=1e-12)
+    assert scores.mean_ap["wells"].shape == (3, 2) and 0 <= scores.mean_ap["wells"].min() <= scores.mean_ap["wells"].max() <= 1
 
 
 def test_validation_items_take_each_source_in_turn():

@@ -51,7 +51,7 @@ from platesynth.segment.model import (
     save_model,
     select_device,
 )
-from platesynth.segment.predict import Polygons, nms_polygons, polygons_to_mask, predict_maps
+from platesynth.segment.predict import nms_polygons, polygons_to_mask, predict_maps
 
 CHECKPOINT_NAME = "checkpoint.pt"
 PROB_THRESHOLDS = (0.1, 0.15, 0.2, 0.25, 0.3, 0.4, 0.5, 0.6, 0.7)
@@ -267,32 +267,37 @@ def validation_loss(model: StarDistTwoBranch, dataset: SegmentationDataset, conf
     return total / len(dataset)
 
 
-def tune_thresholds(
+@dataclass
+class ThresholdScores:
+    """What the validation items say of every candidate (probability, NMS) threshold pair, indexed ``[i, j]`` by
+    ``prob_thresholds[i]`` and ``nms_thresholds[j]``."""
+
+    prob_thresholds: tuple[float, ...]
+    nms_thresholds: tuple[float, ...]
+    mean_ap: dict[str, np.ndarray]
+    """Per branch, the mean AP over the items at the matching IoU ``tau``."""
+    count_errors: np.ndarray
+    """``(P, N, wells)``: predicted minus true plaques of every countable well of the items."""
+
+
+def threshold_scores(
     model: StarDistTwoBranch,
     items: Sequence[DatasetItem],
     prob_thresholds: Sequence[float] = PROB_THRESHOLDS,
     nms_thresholds: Sequence[float] = NMS_THRESHOLDS,
     tau: float = 0.5,
-) -> dict[str, tuple[float, float]]:
-    """Per branch, the (probability, NMS) threshold pair tuned on the items.
+) -> ThresholdScores:
+    """Score every candidate threshold pair on rendered items (:class:`ThresholdScores`).
 
-    Wells: the pair with the highest mean AP at ``tau``. Plaques: the probability threshold of that best-AP pair,
-    then, at that probability, the NMS threshold for the plaques per countable well: the smallest one whose mean
-    absolute count error is within one standard error of the smallest error (the one-standard-error rule: among
-    thresholds the validation images cannot tell apart, the one that suppresses most). The probability threshold
-    decides which candidates are plaques at all, which AP measures; the NMS threshold decides how far neighbouring
-    plaques may overlap and still count as two, which a count needs and AP at ``tau`` hardly sees in crowded wells.
-
-    Ties go to the first candidate in the order of the lists. Without items the model's thresholds stay. NMS runs
-    once per NMS threshold, at the lowest probability threshold: a polygon is only ever suppressed by a more
-    probable one, so the polygons kept at a higher threshold are those kept at the lowest that score above it (up
-    to the order of equal scores).
+    NMS runs once per NMS threshold, at the lowest probability threshold, and its polygons are drawn once: a
+    polygon is only ever suppressed by a more probable one and drawn under it, so the mask at a higher probability
+    threshold is that mask with the less probable polygons erased (the same instances as drawing the kept polygons
+    alone).
     """
-    if not items:
-        return {name: (b.prob_thresh, b.nms_thresh) for name, b in model.config.branches.items()}
+    prob_thresholds, nms_thresholds = tuple(prob_thresholds), tuple(nms_thresholds)
     shape = (len(prob_thresholds), len(nms_thresholds))
-    scores = {name: np.zeros(shape) for name in BRANCHES}
-    count_errors: list[list[list[int]]] = [[[] for _ in nms_thresholds] for _ in prob_thresholds]
+    mean_ap = {name: np.zeros(shape) for name in BRANCHES}
+    errors: list[list[list[int]]] = [[[] for _ in nms_thresholds] for _ in prob_thresholds]
     for item in items:
         image, wells, plaques = load_item(item)
         rendered = rendered_countable(item)
@@ -302,34 +307,73 @@ def tune_thresholds(
         for name, truth in (("wells", wells), ("plaques", plaques)):
             for j, nms in enumerate(nms_thresholds):
                 kept = nms_polygons(maps[name], min(prob_thresholds), nms)
+                drawn = polygons_to_mask(kept, working_shape, truth.shape)
                 for i, prob in enumerate(prob_thresholds):
-                    above = kept.scores > prob
-                    polygons = Polygons(kept.points[above], kept.dist[above], kept.scores[above])
-                    predicted = polygons_to_mask(polygons, working_shape, truth.shape)
-                    scores[name][i, j] += match_instances(truth, predicted, tau).ap
+                    erase = np.concatenate([[0], np.where(kept.scores > prob, np.arange(1, len(kept.scores) + 1), 0)])
+                    predicted = erase[drawn]
+                    mean_ap[name][i, j] += match_instances(truth, predicted, tau).ap / len(items)
                     if name == "plaques":
                         found = plaque_counts(wells, predicted, counted)
-                        count_errors[i][j] += [abs(found[w] - true_counts[w]) for w in counted]
+                        errors[i][j] += [found[w] - true_counts[w] for w in counted]
+    return ThresholdScores(prob_thresholds, nms_thresholds, mean_ap, np.array(errors, dtype=float).reshape(*shape, -1))
+
+
+def choose_thresholds(scores: ThresholdScores) -> dict[str, tuple[float, float]]:
+    """Per branch, the (probability, NMS) threshold pair to keep.
+
+    Wells: the pair with the highest mean AP. Plaques: the probability threshold of the best-AP pair, then, at that
+    probability, the NMS threshold for the plaques per countable well: the smallest one whose mean absolute count
+    error is within one standard error of the smallest error (:func:`one_standard_error_choice`: among thresholds
+    the validation images cannot tell apart, the one that suppresses most). The probability threshold decides which
+    candidates are plaques at all, which AP measures; the NMS threshold decides how far neighbouring plaques may
+    overlap and still count as two, which a count needs and AP hardly sees in crowded wells. Ties go to the first
+    candidate in the order of the lists.
+    """
     best = {}
-    for name, table in scores.items():
+    for name, table in scores.mean_ap.items():
         i, j = np.unravel_index(np.argmax(table), table.shape)
         if name == "plaques":
-            j = one_standard_error_choice(count_errors[i], j)
-        best[name] = (float(prob_thresholds[i]), float(nms_thresholds[j]))
+            j = one_standard_error_choice(np.abs(scores.count_errors[i]), j)
+        best[name] = (float(scores.prob_thresholds[i]), float(scores.nms_thresholds[j]))
     return best
 
 
-def one_standard_error_choice(errors: Sequence[Sequence[float]], default: int) -> int:
+def one_standard_error_choice(errors: Sequence[Sequence[float]] | np.ndarray, default: int) -> int:
     """Index of the first candidate whose mean error is within one standard error of the smallest mean error.
 
     ``errors[k]`` are candidate ``k``'s errors over the same cases; ``default`` is returned where there are none.
     """
-    if not errors or not len(errors[0]):
+    if not len(errors) or not len(errors[0]):
         return int(default)
     means = np.array([np.mean(e) for e in errors])
     lowest = int(np.argmin(means))
     spread = np.std(errors[lowest], ddof=1) / np.sqrt(len(errors[lowest])) if len(errors[lowest]) > 1 else 0.0
     return int(np.flatnonzero(means <= means[lowest] + spread)[0])
+
+
+def _validation_at(scores: ThresholdScores, prob: float, nms: float) -> dict[str, float | int | None]:
+    """How the plaques of the validation images' countable wells fare at one threshold pair (kept with the model)."""
+    i, j = scores.prob_thresholds.index(prob), scores.nms_thresholds.index(nms)
+    errors = scores.count_errors[i, j]
+    return {
+        "count_mae": float(np.mean(np.abs(errors))) if errors.size else None,
+        "count_bias": float(np.mean(errors)) if errors.size else None,
+        "countable_wells": int(errors.size),
+    }
+
+
+def tune_thresholds(
+    model: StarDistTwoBranch,
+    items: Sequence[DatasetItem],
+    prob_thresholds: Sequence[float] = PROB_THRESHOLDS,
+    nms_thresholds: Sequence[float] = NMS_THRESHOLDS,
+    tau: float = 0.5,
+) -> dict[str, tuple[float, float]]:
+    """Per branch, the (probability, NMS) threshold pair tuned on rendered items: :func:`choose_thresholds` of
+    :func:`threshold_scores`. Without items the model's thresholds stay."""
+    if not items:
+        return {name: (b.prob_thresh, b.nms_thresh) for name, b in model.config.branches.items()}
+    return choose_thresholds(threshold_scores(model, items, prob_thresholds, nms_thresholds, tau))
 
 
 def train(
@@ -452,9 +496,12 @@ def train(
     best = StarDistTwoBranch(model_config)
     best.load_state_dict(load_tensors(model_dir / WEIGHTS_NAME))
     best = best.to(torch_device)
-    thresholds = tune_thresholds(best, val_items) if config.tune_thresholds else {
-        name: (b.prob_thresh, b.nms_thresh) for name, b in model_config.branches.items()
-    }
+    thresholds = {name: (b.prob_thresh, b.nms_thresh) for name, b in model_config.branches.items()}
+    at_thresholds = None
+    if config.tune_thresholds and val_items:
+        scores = threshold_scores(best, val_items)
+        thresholds = choose_thresholds(scores)
+        at_thresholds = _validation_at(scores, *thresholds["plaques"])
     for name, (prob, nms) in thresholds.items():
         best.config.branches[name].prob_thresh, best.config.branches[name].nms_thresh = prob, nms
     if config.tune_thresholds:
@@ -466,6 +513,7 @@ def train(
         "best_val_loss": best_val if math.isfinite(best_val) else None,
         "mean_plaques_per_well": baseline,
         "thresholds_tuned_on": len(val_items) if config.tune_thresholds else 0,
+        "validation_at_thresholds": at_thresholds,
     }
     best.config.version = __version__
     best.config.complete = True
