@@ -189,6 +189,8 @@ def test_evaluate_masks_with_true_masks(rendered):
 def test_cli_train_predict_evaluate(rendered, tiny_model, tmp_path):
     config = load_model(tiny_model).config
     assert config.training["thresholds_tuned_on"] == 1
+    at_thresholds = config.training["validation_at_thresholds"]  # the held-out image's count error, kept
+    assert 0 < at_thresholds["countable_wells"] <= 12 and at_thresholds["count_mae"] >= abs(at_thresholds["count_bias"])
 
     out = tmp_path / "pred"
     images = sorted((rendered / "images").glob("*.png"))[:2]
