@@ -280,8 +280,8 @@ def test_the_compositor_post_processing_is_the_raster_renderers(pool):
     as :func:`platesynth.render.postprocess.apply_post` changes it."""
     from platesynth.render import postprocess
     from platesynth.render.raster import REFERENCE_WIDTH
-    from platesynth.render.textures import scene_rng
     from platesynth.scene.concrete import Effect
+    from platesynth.scene.streams import scene_rng
 
     # a bright exposure, so that bloom has bright areas to glow around
     scene = sample_scene(load_config("high", overrides={"plaques.negative_plate": 1.0, "lighting.exposure_ev": 0.0}), 2)

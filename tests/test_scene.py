@@ -42,7 +42,7 @@ def test_presets_load_and_sample_json_roundtrip(preset):
 # here changes every dataset rendered from these presets). Update only for a deliberate change of the sampling.
 SCENE_SHA256_SEED3 = {
     "diverse": "1159b0ee1f1d068b8dcdc69e715f00131bb3fbe028e4264fb53cc09ee0edd3de",
-    "high": "a3b9a8a140ed4a0fe4e5980062b191c98d1f67e35e16e4cd7cd35aba2c162349",
+    "high": "63100993dc30c936972b01de3ba20fd208c63a1c3ac42e659d99bfdf392eabca",
     "lightbox12": "94156080ca84480e0011ebbcb63f45488edf2b3cc412872e264f9d69da109fd1",
     "low": "7dda90ec1352464f0eefbbc86c2839bd09ae9c1aa97a5306a46530fea83a10ec",
     "medium": "a7d4e7134b17fc494917d008d7836117b3ff1b52b85e378e8ae4db16848818a8",
@@ -308,6 +308,21 @@ def test_panel_orientation_and_side_are_parameters():
     assert upright[2] - upright[0] == pytest.approx(227.76) and upright[3] - upright[1] == pytest.approx(300.0)
     assert upright[0] == pytest.approx(-127.76 / 2 - 50)  # the plate near the panel's left edge
     assert across[2] - across[0] == pytest.approx(300.0) and across[2] == pytest.approx(127.76 / 2 + 50)
+
+
+def test_pale_plates_change_only_the_stain_colour():
+    pale = {"stain.pale_plates": 1.0, "stain.pale_hue_deg": [236, 248], "stain.pale_saturation": [0.4, 0.65]}
+    for seed in range(6):
+        usual = sample_scene(load_config("high", overrides={"stain.pale_plates": 0.0}), seed)
+        thin = sample_scene(load_config("high", overrides=pale), seed)
+        assert 236 <= thin.stain.hue_deg <= 248 and 0.4 <= thin.stain.saturation <= 0.65
+        assert 270 <= usual.stain.hue_deg <= 292 and usual.stain.saturation >= 0.93  # high's deep stain
+        # drawn from a stream of its own: every other parameter of the scene is the one drawn without it
+        same = usual.model_copy(update={"stain": usual.stain.model_copy(
+            update={"hue_deg": thin.stain.hue_deg, "saturation": thin.stain.saturation})})
+        assert same == thin
+    shares = [sample_scene(load_config("high"), seed).stain.saturation < 0.9 for seed in range(200)]
+    assert 0.2 < np.mean(shares) < 0.4  # high: pale_plates 0.3
 
 
 def test_load_scene_reports_bad_files(tmp_path):

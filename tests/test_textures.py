@@ -5,8 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from platesynth.render.textures import STREAMS, noise_grid, plate_grid_index, scene_rng, scene_textures
+from platesynth.render.textures import noise_grid, plate_grid_index, scene_textures
 from platesynth.scene import load_config, sample_scene
+from platesynth.scene.streams import STREAMS, scene_rng
 
 
 def test_textures_are_fixed_by_the_seed_and_differ_between_seeds():

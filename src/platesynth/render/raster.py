@@ -24,8 +24,9 @@ from platesynth.render.color import gamma_lut, light_colour, linear_lut, srgb_to
 from platesynth.render.look import DESK_CELL_MM, DESK_SHEEN, RELIEF_EMBOSS, RELIEF_RAISED, TOP_EDGE_OFFSET_MM
 from platesynth.render.masks import renumber
 from platesynth.render.result import RenderResult, WellInfo, check_size
-from platesynth.render.textures import noise_grid, scene_rng, scene_textures
+from platesynth.render.textures import noise_grid, scene_textures
 from platesynth.scene.concrete import PlateGeometry, Scene, Well
+from platesynth.scene.streams import scene_rng
 
 __all__ = ["REFERENCE_WIDTH", "View", "camera_view", "render_raster", "srgb_to_linear", "texels_per_mm"]
 

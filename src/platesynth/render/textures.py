@@ -4,8 +4,9 @@ The raster renderer samples these arrays in its kernels; the Blender backend tur
 that its shaders look up at the same plate positions. So a scene has one stain unevenness, one drying texture,
 one plaque fray and one pattern of lysed remnants, whichever renderer draws it.
 
-Every random stream a renderer draws from a scene's seed is one of :data:`STREAMS`, spawned from
-``numpy.random.SeedSequence(scene.seed)``: adding a stream never changes the others.
+Every random stream a renderer draws from a scene's seed is one of
+:data:`~platesynth.scene.streams.STREAMS`, spawned from ``numpy.random.SeedSequence(scene.seed)``: adding a stream
+never changes the others.
 """
 
 from __future__ import annotations
@@ -16,9 +17,7 @@ import numpy as np
 from scipy import ndimage
 
 from platesynth.scene.concrete import PlateGeometry, Scene
-
-STREAMS = ("well_offsets", "unevenness", "fibres", "desk", "fine", "residual", "post", "mottle")
-"""The renderers' random streams, in the order they are spawned from the scene's seed."""
+from platesynth.scene.streams import scene_rng
 
 FINE_CELL_MM = 0.05
 """Cell of the drying texture on the monolayer (the fine tile)."""
@@ -32,11 +31,6 @@ MOTTLE_CELL_MM = 0.06
 """Cell of the patchy cells in the mottled band along a well's rim (the mottle tile)."""
 WELL_OFFSET_RANGE_MM = 100.0
 """Each well reads the periodic tiles shifted by its own offset, uniform in [0, this)."""
-
-
-def scene_rng(seed: int, stream: str) -> np.random.Generator:
-    """The generator of one of :data:`STREAMS` for a scene's ``seed``."""
-    return np.random.default_rng(np.random.SeedSequence(int(seed)).spawn(len(STREAMS))[STREAMS.index(stream)])
 
 
 def plate_grid_index(plate: PlateGeometry, center_mm: tuple[float, float]) -> int:

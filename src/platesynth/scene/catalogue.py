@@ -118,6 +118,11 @@ class StainConfig(Section):
     centre_offset: Dist = number(0.15, 0.0, 1.0, "",
                                  "sd of a dark centre's offset from the well centre, per axis, fraction of its radius")
     drying_detail_factor: Dist = number([0.7, 1.0], 0.0, 2.0, "", "each well's factor on drying_detail")
+    pale_plates: float = probability(
+        0.0, "share of plates stained pale and bluish (a thin film, as on the IBV plates): their hue and saturation "
+        "are drawn from pale_hue_deg and pale_saturation instead")
+    pale_hue_deg: Dist = number([236.0, 248.0], 0.0, 360.0, "deg", "stain hue of a pale plate")
+    pale_saturation: Dist = number([0.45, 0.7], 0.0, 1.0, "", "stain saturation of a pale plate at nominal density")
 
 
 class WellsConfig(Section):

@@ -36,6 +36,7 @@ from platesynth.scene.concrete import (
     Well,
     WellStain,
 )
+from platesynth.scene.streams import scene_rng
 
 STAIN_DRAWN_LAST = ("rim_mottle", "rim_mottle_mm", "lysed_density", "lysed_residue", "lysed_strands", "lysed_grain")
 """Stain parameters drawn after all others (added later; drawing them earlier would change every scene)."""
@@ -119,7 +120,8 @@ def _tuple2(a: np.ndarray) -> tuple[float, float]:
 
 
 def sample_scene(config: SceneConfig, seed: int) -> Scene:
-    """Draw a concrete scene from ``config``; every random draw comes from ``numpy.random.default_rng(seed)``.
+    """Draw a concrete scene from ``config``; every random draw comes from ``numpy.random.default_rng(seed)``, or
+    for parameters added later from a named stream of the seed (:mod:`platesynth.scene.streams`).
 
     Parameters
     ----------
@@ -180,9 +182,13 @@ def sample_scene(config: SceneConfig, seed: int) -> Scene:
         frame_mm=b.draw("frame_mm", rng),
     )
 
+    hue_deg, saturation = c.stain.draw("hue_deg", rng), c.stain.draw("saturation", rng)
+    palette = scene_rng(seed, "stain_palette")  # drawn beside the main order: scenes drawn before stay
+    if palette.random() < c.stain.draw("pale_plates", palette):
+        hue_deg, saturation = c.stain.draw("pale_hue_deg", palette), c.stain.draw("pale_saturation", palette)
     stain = Stain(
-        hue_deg=c.stain.draw("hue_deg", rng),
-        saturation=c.stain.draw("saturation", rng),
+        hue_deg=hue_deg,
+        saturation=saturation,
         value=c.stain.draw("value", rng),
         unevenness=c.stain.draw("unevenness", rng),
         unevenness_scale_mm=c.stain.draw("unevenness_scale_mm", rng),

@@ -1,0 +1,19 @@
+"""Named random streams of a scene's seed, beside the sampler's own generator.
+
+:func:`~platesynth.scene.sample.sample_scene` draws a scene's parameters in a fixed order from
+``numpy.random.default_rng(seed)``. Everything else drawn from the seed (the renderers' noise textures, a parameter
+added after the others) comes from one of :data:`STREAMS`, spawned from ``numpy.random.SeedSequence(seed)``: adding
+a stream never changes the others, nor the sampler's order, so scenes drawn before stay as they were.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+STREAMS = ("well_offsets", "unevenness", "fibres", "desk", "fine", "residual", "post", "mottle", "stain_palette")
+"""The random streams of a scene's seed, in the order they are spawned (append new ones at the end)."""
+
+
+def scene_rng(seed: int, stream: str) -> np.random.Generator:
+    """The generator of one of :data:`STREAMS` for a scene's ``seed``."""
+    return np.random.default_rng(np.random.SeedSequence(int(seed)).spawn(len(STREAMS))[STREAMS.index(stream)])
