@@ -42,7 +42,7 @@ def test_presets_load_and_sample_json_roundtrip(preset):
 # here changes every dataset rendered from these presets). Update only for a deliberate change of the sampling.
 SCENE_SHA256_SEED3 = {
     "diverse": "1159b0ee1f1d068b8dcdc69e715f00131bb3fbe028e4264fb53cc09ee0edd3de",
-    "high": "63100993dc30c936972b01de3ba20fd208c63a1c3ac42e659d99bfdf392eabca",
+    "high": "ea514fd9f782390f82fadfb97097ab9bd8e0fbdcfb3e42c757b03b776bbcfe3e",
     "lightbox12": "94156080ca84480e0011ebbcb63f45488edf2b3cc412872e264f9d69da109fd1",
     "low": "7dda90ec1352464f0eefbbc86c2839bd09ae9c1aa97a5306a46530fea83a10ec",
     "medium": "a7d4e7134b17fc494917d008d7836117b3ff1b52b85e378e8ae4db16848818a8",
@@ -316,13 +316,14 @@ def test_pale_plates_change_only_the_stain_colour():
         usual = sample_scene(load_config("high", overrides={"stain.pale_plates": 0.0}), seed)
         thin = sample_scene(load_config("high", overrides=pale), seed)
         assert 236 <= thin.stain.hue_deg <= 248 and 0.4 <= thin.stain.saturation <= 0.65
-        assert 270 <= usual.stain.hue_deg <= 292 and usual.stain.saturation >= 0.93  # high's deep stain
+        assert 262 <= usual.stain.hue_deg <= 286 and usual.stain.saturation >= 0.9  # high's deep stain
         # drawn from a stream of its own: every other parameter of the scene is the one drawn without it
         same = usual.model_copy(update={"stain": usual.stain.model_copy(
             update={"hue_deg": thin.stain.hue_deg, "saturation": thin.stain.saturation})})
         assert same == thin
-    shares = [sample_scene(load_config("high"), seed).stain.saturation < 0.9 for seed in range(200)]
-    assert 0.2 < np.mean(shares) < 0.4  # high: pale_plates 0.3
+    shares = [sample_scene(load_config("high", overrides={"stain.pale_plates": 0.3}), seed).stain.saturation < 0.9
+              for seed in range(200)]
+    assert 0.2 < np.mean(shares) < 0.4
 
 
 def test_load_scene_reports_bad_files(tmp_path):
