@@ -178,6 +178,18 @@ def test_deterministic_and_resumed_without_repeating(run_of_four, reference, tmp
     assert _trials(out) == _trials(run_of_four.out)  # interrupted or not, the same trials for the same seed
 
 
+def test_trials_on_a_dask_cluster_equal_those_in_one_process(run_of_four, reference, tmp_path):
+    distributed = pytest.importorskip("distributed", reason="the Dask executor needs the 'dask' extra")
+    from platesynth.data.executor import DaskExecutor
+
+    with distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=True, dashboard_address=None,
+                                  scheduler_kwargs={"dashboard_address": ":0"}) as cluster:
+        result = optimise(reference, tmp_path / "dask", preset="low", trials=4,
+                          executor=DaskExecutor(scheduler=cluster.scheduler_address), **TINY)
+    assert _trials(result.out) == _trials(run_of_four.out)
+    assert result.report["evaluation"] == run_of_four.report["evaluation"]
+
+
 def test_other_settings_in_the_same_folder_are_refused(run_of_four, reference):
     with pytest.raises(OutputError, match="holds an optimisation with other settings \\(eval_count\\)"):
         optimise(reference, run_of_four.out, preset="low", trials=4, **{**TINY, "eval_count": 4})
