@@ -291,8 +291,9 @@ def threshold_scores(
 
     NMS runs once per NMS threshold, at the lowest probability threshold, and its polygons are drawn once: a
     polygon is only ever suppressed by a more probable one and drawn under it, so the mask at a higher probability
-    threshold is that mask with the less probable polygons erased (the same instances as drawing the kept polygons
-    alone).
+    threshold is that mask with the less probable polygons erased. That is what NMS at the higher threshold gives,
+    up to how stardist's NMS orders equal scores and searches for neighbours among the candidates it is given (in
+    ``benchmarks/bench_tuning.py``, one plaque in one well of 16 images, at two of the 54 pairs).
     """
     prob_thresholds, nms_thresholds = tuple(prob_thresholds), tuple(nms_thresholds)
     shape = (len(prob_thresholds), len(nms_thresholds))
