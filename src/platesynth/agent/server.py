@@ -710,8 +710,7 @@ def build_server(workspace: Workspace, limits: Limits | None = None) -> Platesyn
 
         model_dir = read(model, what="model")
         network = load_model(model_dir, select_device(device))
-        thresholds = {name: (b.prob_thresh, b.nms_thresh) for name, b in network.config.branches.items()}
-        return network, thresholds, model_dir
+        return network, network.config.thresholds, model_dir
 
     Device = Annotated[Literal["auto", "cpu", "cuda"], Field(description="where to run the model")]
 

@@ -112,6 +112,11 @@ class ModelConfig(BaseModel):
         """Input height and width must be multiples of this (the deepest stride)."""
         return 2 ** (len(self.channels) - 1)
 
+    @property
+    def thresholds(self) -> dict[str, tuple[float, float]]:
+        """Per branch, the stored (probability, NMS) threshold pair."""
+        return {name: (branch.prob_thresh, branch.nms_thresh) for name, branch in self.branches.items()}
+
 
 def _conv_block(in_channels: int, out_channels: int, dilations: tuple[int, ...] = (1, 1)) -> nn.Sequential:
     layers: list[nn.Module] = []

@@ -175,8 +175,7 @@ def predict_image(
     rgb = to_rgb_uint8(image)
 
     def kept(maps: dict[str, BranchMaps], name: str) -> Polygons:
-        branch = model.config.branches[name]
-        prob_thresh, nms_thresh = (thresholds or {}).get(name, (branch.prob_thresh, branch.nms_thresh))
+        prob_thresh, nms_thresh = (thresholds or {}).get(name, model.config.thresholds[name])
         return nms_polygons(maps[name], prob_thresh, nms_thresh)
 
     maps, working_shape = predict_maps(model, rgb)
@@ -242,7 +241,7 @@ def predict_files(
         counts = result.well_counts()
         params = {
             "source": str(path),
-            "thresholds": thresholds or {n: [b.prob_thresh, b.nms_thresh] for n, b in model.config.branches.items()},
+            "thresholds": thresholds or model.config.thresholds,
         }
         write_item(item_paths(out_dir, path.stem), result, params)
         rows += [(path.name, w.row, w.col, w.label, "" if counts[w.id] is None else counts[w.id]) for w in result.well_info]

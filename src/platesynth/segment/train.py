@@ -373,7 +373,7 @@ def tune_thresholds(
     """Per branch, the (probability, NMS) threshold pair tuned on rendered items: :func:`choose_thresholds` of
     :func:`threshold_scores`. Without items the model's thresholds stay."""
     if not items:
-        return {name: (b.prob_thresh, b.nms_thresh) for name, b in model.config.branches.items()}
+        return model.config.thresholds
     return choose_thresholds(threshold_scores(model, items, prob_thresholds, nms_thresholds, tau))
 
 
@@ -497,7 +497,7 @@ def train(
     best = StarDistTwoBranch(model_config)
     best.load_state_dict(load_tensors(model_dir / WEIGHTS_NAME))
     best = best.to(torch_device)
-    thresholds = {name: (b.prob_thresh, b.nms_thresh) for name, b in model_config.branches.items()}
+    thresholds = model_config.thresholds
     at_thresholds = None
     if config.tune_thresholds and val_items:
         scores = threshold_scores(best, val_items)
