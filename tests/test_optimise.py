@@ -133,6 +133,17 @@ def test_space_file_over_the_default_space(tmp_path):
     assert (noise.low, noise.high) == (0.0, 1.0)
 
 
+def test_fixed_takes_a_parameter_out_of_the_default_space(tmp_path):
+    path = tmp_path / "space.yaml"
+    path.write_text("all: auto\nplaques.radius_mm: fixed\nplaques.max_coverage: fixed\n")
+    start = load_config("low")
+    space = load_space(path, start)
+    assert space.names == [n for n in default_space(start).names if n not in ("plaques.radius_mm", "plaques.max_coverage")]
+    path.write_text("all: auto\nplaques.radius: fixed\n")
+    with pytest.raises(ParameterError, match="plaques.radius"):
+        load_space(path, start)
+
+
 def test_split_is_by_plate_seeded_and_balanced(tmp_path):
     for group, n in (("A", 6), ("B", 4)):
         for i in range(n):
@@ -246,3 +257,64 @@ def test_multi_objective_keeps_a_pareto_front(reference, weights, tmp_path, one_
     assert result.report["objectives"] == ["fd_images", "fd_wells", "dnf", "entropy_gap"]
     assert result.report["best_trial"] in result.report["pareto_trials"]
     assert (tmp_path / "multi" / "pareto.csv").is_file() and (tmp_path / "multi" / "pareto.png").is_file()
+
+
+# ------------------------------------------------------------------------------------------ the plaque-size term
+
+
+@pytest.fixture(scope="module")
+def shipped_model():
+    from pathlib import Path
+
+    model = Path(__file__).resolve().parents[1] / "models" / "plaque12"
+    if not (model / "weights.pt").is_file():
+        pytest.skip(f"{model}: the shipped model is missing")
+    return model
+
+
+def test_plaque_sizes_are_measured_alike_in_renders_and_photos(reference, shipped_model, one_torch_thread):
+    import numpy as np
+
+    from platesynth.data.batch import build_manifest, render_item
+    from platesynth.metrics.wells import plaque_area_distance, plaque_measurements
+    from platesynth.optimise.objective import MeasuredSet, Reference, compare, plaque_area_fractions
+    from platesynth.segment.model import load_model
+    from platesynth.segment.predict import predict_image
+
+    manifest = build_manifest(preset="high", seed=6, count=2, size=(608, 472))  # plaques in both
+    images = [render_item(manifest, index)[0].image for index in range(2)]
+    fractions = plaque_area_fractions(images, str(shipped_model))
+    found = predict_image(load_model(shipped_model), images[1])
+    second = plaque_measurements(images[1], found.wells, found.plaques)["area_fraction"]
+    assert fractions.size > second.size > 10  # both images' plaques, in order
+    np.testing.assert_array_equal(fractions[-second.size:], second)
+    assert np.all((fractions > 0) & (fractions < 0.5))
+
+    def measured(values):
+        return MeasuredSet(np.eye(3), np.eye(3), 1.0, (np.zeros((4, 4), np.uint8),) * 2,
+                           plaque_area_fractions=values)
+
+    photos = Reference("fit", ("a", "b"), measured(fractions / 2), 2, 0.0)
+    terms = compare(measured(fractions), photos)
+    assert terms["plaque_sizes"] == pytest.approx(np.log10(2)) == pytest.approx(plaque_area_distance(fractions, fractions / 2))
+    assert "plaque_sizes" not in compare(measured(None), photos)  # without a plaque model, no term
+
+
+def test_a_run_with_a_plaque_model_reports_plaque_sizes(reference, weights, shipped_model, tmp_path, one_torch_thread):
+    result = optimise(reference, tmp_path / "plaques", preset="high", trials=2, plaque_model=shipped_model,
+                      multi_objective=True, **{**TINY, "size": (304, 236)})
+    start, other = _trials(tmp_path / "plaques")
+    assert start["state"] == "complete" and 0 < start["plaque_sizes"] < 1
+    # the second trial's three tiny renders hold no plaque the model finds: recorded as failed, not fatal
+    assert other["state"] == "fail" and "no plaques in one of the sets" in other["error"]
+    assert "plaque_sizes" in result.report["objectives"]
+    for part in ("fit", "check"):
+        assert result.report["evaluation"][part]["best"]["plaque_sizes"] >= 0
+
+
+def test_a_missing_plaque_model_is_refused_before_writing(reference, weights, tmp_path):
+    from platesynth.errors import DatasetError
+
+    with pytest.raises(DatasetError):
+        optimise(reference, tmp_path / "never", preset="low", trials=2, plaque_model=tmp_path / "no-model", **TINY)
+    assert not (tmp_path / "never").exists()

@@ -12,7 +12,7 @@ from typer.testing import CliRunner
 from platesynth.cli import app
 from platesynth.data.layout import item_paths
 from platesynth.data.writer import write_item
-from platesynth.errors import ParameterError, ShapeMismatchError
+from platesynth.errors import MetricUndefinedError, ParameterError, ShapeMismatchError
 from platesynth.metrics.wells import (
     WellCrops,
     WellDisc,
@@ -21,6 +21,7 @@ from platesynth.metrics.wells import (
     crop_well,
     find_dataset_root,
     fit_plate_grid,
+    plaque_area_distance,
     plaque_measurements,
     radial_power_spectrum,
     spectrum_distance,
@@ -219,6 +220,17 @@ def test_spectrum_distance_is_the_rms_log_difference():
 
 
 # ------------------------------------------------------------------------------------------------------- plaques
+
+
+def test_plaque_area_distance_is_in_decades_of_area():
+    sizes = np.array([0.001, 0.004, 0.01, 0.03])
+    assert plaque_area_distance(sizes, sizes) == 0.0
+    assert plaque_area_distance(sizes, 2 * sizes) == pytest.approx(np.log10(2))  # every plaque twice as large
+    assert plaque_area_distance([0.001, 0.1], [0.01]) == pytest.approx(1.0)  # one decade either way
+    with pytest.raises(MetricUndefinedError, match="no plaques"):
+        plaque_area_distance(sizes, [])
+    with pytest.raises(MetricUndefinedError, match="positive"):
+        plaque_area_distance(sizes, [0.0, 0.01])
 
 
 def test_plaque_area_and_contrast_of_a_hand_made_mask():

@@ -461,7 +461,13 @@ def build_server(workspace: Workspace, limits: Limits | None = None) -> Platesyn
         check_fraction: Annotated[float | None, Field(gt=0, lt=1, description="share of the photos kept for checking")] = None,
         weights: Annotated[
             dict[str, float] | None,
-            Field(description="weights of the objective's terms (fd_images, fd_wells, dnf, entropy_gap, fid_inception)"),
+            Field(description="weights of the objective's terms (fd_images, fd_wells, dnf, entropy_gap, plaque_sizes, "
+                              "fid_inception)"),
+        ] = None,
+        plaque_model: Annotated[
+            str | None,
+            Field(description="a model folder (e.g. the shipped models/plaque12) that measures plaque sizes in renders "
+                              "and photos alike: adds the plaque_sizes term"),
         ] = None,
         multi_objective: bool = False,
         compare: Annotated[list[Preset], Field(description="presets also measured in the report")] = [],  # noqa: B006
@@ -483,6 +489,7 @@ def build_server(workspace: Workspace, limits: Limits | None = None) -> Platesyn
         photos = read(reference, what="reference")
         config_path = read(config, what="config") if config else None
         space_path = read(space, what="space") if space else None
+        model_dir = read(plaque_model, what="plaque_model") if plaque_model else None
         for name in ([preset] if preset else []) + list(compare):
             check_preset_name(name)  # before the first write; the search loads them later
         limits.check_images(len(list_images(photos)), "reference")
@@ -496,7 +503,7 @@ def build_server(workspace: Workspace, limits: Limits | None = None) -> Platesyn
                  "eval_count": eval_count, "check_fraction": check_fraction}
         arguments = {"reference": reference, "out": out, "trials": trials, "preset": preset, "config": config,
                      "overrides": overrides or {}, "space": space, "seed": seed, "weights": weights or {},
-                     "multi_objective": multi_objective, "compare": compare,
+                     "plaque_model": plaque_model, "multi_objective": multi_objective, "compare": compare,
                      **{k: list(v) if isinstance(v, tuple) else v for k, v in given.items()}}
 
         def work(report: Report) -> BaseModel:
@@ -508,7 +515,8 @@ def build_server(workspace: Workspace, limits: Limits | None = None) -> Platesyn
 
             result = run_optimise(
                 photos, target, preset=preset, config=config_path, overrides=overrides or None, space=space_path,
-                trials=trials, seed=seed, weights=weights, multi_objective=multi_objective, compare=tuple(compare),
+                trials=trials, seed=seed, weights=weights, plaque_model=model_dir, multi_objective=multi_objective,
+                compare=tuple(compare),
                 overwrite=overwrite, progress=progress, **{k: v for k, v in given.items() if v is not None},
             )
             best = workspace.relative(result.best_config) if result.best_config is not None else None

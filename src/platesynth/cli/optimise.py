@@ -105,6 +105,11 @@ def optimise(
     weight: Annotated[
         list[str] | None, typer.Option("--weight", help="Weight of a term, e.g. --weight fd_wells=2; repeatable.")
     ] = None,
+    plaque_model: Annotated[
+        Path | None,
+        typer.Option("--plaque-model", help="Segmentation model (e.g. models/plaque12) measuring plaque sizes in "
+                     "renders and photos alike: adds the plaque_sizes term."),
+    ] = None,
     multi_objective: Annotated[
         bool, typer.Option("--multi-objective", help="Optimise the terms together (a Pareto front).")
     ] = False,
@@ -155,6 +160,7 @@ def optimise(
             trials=trials,
             seed=seed,
             weights=parse_weights(weight),
+            plaque_model=plaque_model,
             multi_objective=multi_objective,
             executor=pool,
             batch=workers,

@@ -10,6 +10,11 @@ well masks nearest-neighbour), the photos resized to it once. The terms (:data:`
 - ``dnf``: ``|mean Nf of the photos - mean Nf of the renders|`` (naturalness factor, whole images);
 - ``entropy_gap``: ``|size-matched pixel entropy of the renders - of the photos|`` in bits
   (:func:`~platesynth.metrics.size_matched_entropy`, subsets as large as the smaller set, so sizes do not matter);
+- ``plaque_sizes``: :func:`~platesynth.metrics.wells.plaque_area_distance` (decades) between the plaques' area
+  fractions of their wells in the renders and in the photos, only with a plaque model (``plaque_model``). The photos
+  have no masks, so both sets are measured alike: by that segmentation model's wells and plaques
+  (:func:`~platesynth.segment.predict.predict_image`), not by the renders' true masks, which hold plaques too small or
+  faint for anyone to see;
 - ``fid_inception``: the Fréchet distance of InceptionV3 features, only where its weights are found locally.
 
 The single objective is their weighted sum (:data:`DEFAULT_WEIGHTS`, :func:`weighted_sum`).
@@ -20,7 +25,8 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
+from functools import lru_cache
 from typing import Any
 
 import numpy as np
@@ -29,12 +35,20 @@ from PIL import Image
 from platesynth.data.layout import Manifest
 from platesynth.errors import MetricUndefinedError, ParameterError
 
-TERMS = ("fd_images", "fd_wells", "dnf", "entropy_gap", "fid_inception")
-"""The objective's terms, in the order they are reported (``fid_inception`` only with its weights)."""
+PLAQUE_WEIGHT = 100.0
+"""Weight of one decade of ``plaque_sizes`` (plaques twice the photos' area: 0.3 decades, 30 units)."""
 
-DEFAULT_WEIGHTS = {"fd_images": 1.0, "fd_wells": 1.0, "dnf": 20.0, "entropy_gap": 20.0, "fid_inception": 1.0}
+TERMS = ("fd_images", "fd_wells", "dnf", "entropy_gap", "plaque_sizes", "fid_inception")
+"""The objective's terms, in the order they are reported (``plaque_sizes`` only with a plaque model, ``fid_inception``
+only with its weights)."""
+
+DEFAULT_WEIGHTS = {"fd_images": 1.0, "fd_wells": 1.0, "dnf": 20.0, "entropy_gap": 20.0, "plaque_sizes": PLAQUE_WEIGHT,
+                   "fid_inception": 1.0}
 """Weights of the single objective: the Fréchet distances count as they are (tens to hundreds), one unit of dNf
-and one bit of entropy gap as 20 of them."""
+and one bit of entropy gap as 20 of them, one decade of plaque sizes as ``PLAQUE_WEIGHT``."""
+
+OPTIONAL_TERMS = ("plaque_sizes", "fid_inception")
+"""Terms measured only where what they need is given: a plaque model, the Inception weights."""
 
 ENTROPY_SUBSETS = 10
 """Subsets drawn for the size-matched entropy of each set (seed 0, as :func:`size_matched_entropy`'s default)."""
@@ -50,24 +64,27 @@ class MeasureSettings:
     crop_size : side of the well crops.
     grid : (rows, cols) of the plates in the photos (for :func:`~platesynth.metrics.wells.fit_plate_grid`).
     inception_weights : the InceptionV3 weight file where found locally, else None (no ``fid_inception``).
+    plaque_model : a segmentation model's folder that measures the plaques, else None (no ``plaque_sizes``).
     """
 
     compare_size: tuple[int, int]
     crop_size: int = 128
     grid: tuple[int, int] = (3, 4)
     inception_weights: str | None = None
+    plaque_model: str | None = None
 
 
 @dataclass(frozen=True)
 class MeasuredSet:
-    """What a set of images is compared by: deep features of the images and of the well crops, mean Nf, and the
-    images in gray (for the entropy)."""
+    """What a set of images is compared by: deep features of the images and of the well crops, mean Nf, the
+    images in gray (for the entropy) and, with a plaque model, the area fractions of the plaques it finds."""
 
     features: np.ndarray
     well_features: np.ndarray
     nf_mean: float
     gray: tuple[np.ndarray, ...]
     inception: np.ndarray | None = None
+    plaque_area_fractions: np.ndarray | None = None
 
     @property
     def count(self) -> int:
@@ -87,8 +104,7 @@ class Reference:
 
     def without_images(self) -> Reference:
         """The same reference without the gray images (what the workers need: features and figures)."""
-        measured = MeasuredSet(self.measured.features, self.measured.well_features, self.measured.nf_mean, (),
-                               self.measured.inception)
+        measured = replace(self.measured, gray=())
         return Reference(self.name, self.names, measured, self.subset_size, self.entropy)
 
 
@@ -107,6 +123,31 @@ def _extractors(settings: MeasureSettings) -> tuple[Any, Any]:
     if settings.inception_weights is not None:
         inception = get_feature_extractor("inception", settings.inception_weights)
     return get_feature_extractor("alexnet"), inception
+
+
+@lru_cache(maxsize=2)
+def _segmentation_model(model_dir: str) -> Any:
+    from platesynth.segment.model import load_model
+
+    return load_model(model_dir)
+
+
+def plaque_area_fractions(images: Sequence[np.ndarray], model_dir: str) -> np.ndarray:
+    """The area fraction of its well of every plaque a segmentation model finds in ``images`` (one array).
+
+    Both masks are the model's (:func:`~platesynth.segment.predict.predict_image` at its stored thresholds), so
+    photos and renders are measured alike; a plaque counts for the well holding most of it
+    (:func:`~platesynth.metrics.wells.plaque_measurements`).
+    """
+    from platesynth.metrics.wells import plaque_measurements
+    from platesynth.segment.predict import predict_image
+
+    model = _segmentation_model(model_dir)
+    fractions = []
+    for image in images:
+        found = predict_image(model, image)
+        fractions.append(plaque_measurements(image, found.wells, found.plaques)["area_fraction"])
+    return np.concatenate(fractions) if fractions else np.empty(0)
 
 
 def measure_set(
@@ -145,6 +186,8 @@ def measure_set(
         nf_mean=float(np.mean([naturalness_factor(image) for image in images])),
         gray=tuple(grayscale(image) for image in images),
         inception=inception(list(images)) if inception is not None else None,
+        plaque_area_fractions=(plaque_area_fractions(images, settings.plaque_model)
+                               if settings.plaque_model is not None else None),
     )
 
 
@@ -166,6 +209,7 @@ def measure_reference(name: str, names: Sequence[str], images: Sequence[np.ndarr
 def compare(measured: MeasuredSet, reference: Reference) -> dict[str, float]:
     """The objective's terms of a measured set against a reference (``fid_inception`` where both have it)."""
     from platesynth.metrics.frechet import frechet_distance
+    from platesynth.metrics.wells import plaque_area_distance
 
     subset = min(reference.subset_size, measured.count)
     terms = {
@@ -174,6 +218,9 @@ def compare(measured: MeasuredSet, reference: Reference) -> dict[str, float]:
         "dnf": abs(reference.measured.nf_mean - measured.nf_mean),
         "entropy_gap": abs(entropy_of(measured, subset) - reference.entropy),
     }
+    if measured.plaque_area_fractions is not None and reference.measured.plaque_area_fractions is not None:
+        terms["plaque_sizes"] = plaque_area_distance(measured.plaque_area_fractions,
+                                                     reference.measured.plaque_area_fractions)
     if measured.inception is not None and reference.measured.inception is not None:
         terms["fid_inception"] = frechet_distance(measured.inception, reference.measured.inception)
     return terms
@@ -187,7 +234,7 @@ def check_weights(weights: dict[str, float]) -> dict[str, float]:
         if not (isinstance(value, (int, float)) and math.isfinite(value) and value >= 0):
             raise ParameterError(f"weight of {name}: expected a number >= 0, got {value!r}")
     merged = {**DEFAULT_WEIGHTS, **{k: float(v) for k, v in weights.items()}}
-    if not any(merged[name] > 0 for name in TERMS if name != "fid_inception"):
+    if not any(merged[name] > 0 for name in TERMS if name not in OPTIONAL_TERMS):
         raise ParameterError("every weight is 0: give at least one term a positive weight")
     return merged
 

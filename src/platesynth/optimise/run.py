@@ -126,6 +126,7 @@ def optimise(
     well_size: int = CROP_SIZE,
     check_fraction: float = CHECK_FRACTION,
     weights: dict[str, float] | None = None,
+    plaque_model: str | os.PathLike | None = None,
     multi_objective: bool = False,
     storage: str | None = None,
     executor: Executor | None = None,
@@ -173,6 +174,9 @@ def optimise(
         Share of the photos kept for the check part.
     weights : dict, optional
         Weights of the terms in the single objective, over :data:`~platesynth.optimise.objective.DEFAULT_WEIGHTS`.
+    plaque_model : str or path-like, optional
+        A segmentation model's folder (e.g. ``models/plaque12``): adds the ``plaque_sizes`` term, the plaques it finds
+        in the renders against those it finds in the photos. Each trial then also runs the model on its images.
     multi_objective : bool
         Optimise every term with a positive weight at once (a Pareto front); the best configuration is then the
         Pareto-optimal trial with the lowest weighted sum.
@@ -241,8 +245,15 @@ def optimise(
 
     resolve_weights("alexnet")
     inception = _inception_weights()
-    settings = MeasureSettings(compare_size=compare_size, crop_size=well_size, inception_weights=inception)
-    present = [t for t in TERMS if weights[t] > 0 and (t != "fid_inception" or inception is not None)]
+    if plaque_model is not None:
+        from platesynth.segment.model import load_model
+
+        plaque_model = files.resolve(plaque_model)
+        load_model(plaque_model)  # a missing or unfinished model is refused here, before anything is written
+    settings = MeasureSettings(compare_size=compare_size, crop_size=well_size, inception_weights=inception,
+                               plaque_model=plaque_model)
+    available = {"fid_inception": inception is not None, "plaque_sizes": plaque_model is not None}
+    present = [t for t in TERMS if weights[t] > 0 and available.get(t, True)]
     objectives = present if multi_objective else None
     if multi_objective and len(present) < 2:
         raise ParameterError(f"a multi-objective study needs at least 2 terms with a positive weight, got {present}")
@@ -270,6 +281,7 @@ def optimise(
         "weights": weights,
         "objectives": objectives,
         "inception": inception is not None,
+        "plaque_model": plaque_model,
         "storage": storage_url,
     }
 

@@ -16,8 +16,10 @@ start's centre (a probability's valid range is [0, 1]; on a log scale where the 
     stain.hue_deg: [250, 290]                       # the centre's range
     plaques.radius_mm: {range: [0.3, 1.5], log: true}
     post.noise: auto                                # the default range around the start
+    plaques.radius_mm: fixed                        # not searched: the start's value stays
 
-``all: auto`` starts from the whole default space; the other entries then add parameters or replace their ranges.
+``all: auto`` starts from the whole default space; the other entries then add parameters, replace their ranges or
+(``fixed``) take them out.
 Every name and bound is checked against the catalogue with the messages of ``--set`` before the first trial.
 """
 
@@ -58,6 +60,9 @@ log scale."""
 
 AUTO = "auto"
 """The value of a space file's entry that asks for the default range."""
+
+FIXED = "fixed"
+"""The value of a space file's entry that keeps a parameter at the start's value (out of an ``all: auto`` space)."""
 
 ALL = "all"
 """A space file's key that starts from the whole default space (``all: auto``); its other entries then add
@@ -316,7 +321,7 @@ def _entry(dotted: str, entry: Any, start: SceneConfig, narrow: float, source: s
         unknown = sorted(set(entry) - {"range", "log"})
         if unknown or "range" not in entry:
             raise ParameterError(
-                f"{source}{dotted}: expected [low, high], {{range: [low, high], log: true}} or {AUTO}, got {entry!r}"
+                f"{source}{dotted}: expected [low, high], {{range: [low, high], log: true}}, {AUTO} or {FIXED}, got {entry!r}"
             )
         log = entry.get("log", False)
         if not isinstance(log, bool):
@@ -324,7 +329,7 @@ def _entry(dotted: str, entry: Any, start: SceneConfig, narrow: float, source: s
         entry = entry["range"]
     if not isinstance(entry, list) or len(entry) != 2:
         raise ParameterError(
-            f"{source}{dotted}: expected [low, high], {{range: [low, high], log: true}} or {AUTO}, got {entry!r}"
+            f"{source}{dotted}: expected [low, high], {{range: [low, high], log: true}}, {AUTO} or {FIXED}, got {entry!r}"
         )
     low, high = (_bound(dotted, value, source) for value in entry)
     if not low < high:
@@ -344,7 +349,8 @@ def load_space(path: str | os.PathLike, start: SceneConfig, narrow: float = NARR
     ----------
     path : str or path-like
         A YAML mapping of dotted parameter names to ``[low, high]``, ``{range: [low, high], log: true}`` or
-        ``auto`` (also written ``~``); ``all: auto`` first takes the whole default space.
+        ``auto`` (also written ``~``), or ``fixed`` (not searched); ``all: auto`` first takes the whole default
+        space.
     start : SceneConfig
         The start configuration (for ``auto`` ranges, and whose spreads the trials keep).
     narrow : float
@@ -372,6 +378,10 @@ def load_space(path: str | os.PathLike, start: SceneConfig, narrow: float = NARR
         parameters = {p.name: p for p in default_space(start, narrow).parameters}
     for dotted, entry in data.items():
         if dotted == ALL:
+            continue
+        if entry == FIXED:
+            check_parameter_name(str(dotted), source.removesuffix(" "))
+            parameters.pop(str(dotted), None)
             continue
         if isinstance(entry, dict) and "range" not in entry and "log" not in entry and "." not in str(dotted):
             raise ParameterError(f"{source}{dotted}: expected dotted parameter names (e.g. {dotted}.name: [low, high]), "
