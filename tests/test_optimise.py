@@ -297,19 +297,22 @@ def test_plaque_sizes_are_measured_alike_in_renders_and_photos(reference, shippe
     photos = Reference("fit", ("a", "b"), measured(fractions / 2), 2, 0.0)
     terms = compare(measured(fractions), photos)
     assert terms["plaque_sizes"] == pytest.approx(np.log10(2)) == pytest.approx(plaque_area_distance(fractions, fractions / 2))
-    assert "plaque_sizes" not in compare(measured(None), photos)  # without a plaque model, no term
+    assert terms["plaques_found"] == 0.0  # as many per image
+    fewer_found = Reference("fit", ("a", "b", "c", "d"), measured(fractions / 2), 2, 0.0)  # in twice as many photos
+    assert compare(measured(fractions), fewer_found)["plaques_found"] == pytest.approx(np.log10(2))
+    assert not {"plaque_sizes", "plaques_found"} & set(compare(measured(None), photos))  # no plaque model, no terms
 
 
 def test_a_run_with_a_plaque_model_reports_plaque_sizes(reference, weights, shipped_model, tmp_path, one_torch_thread):
     result = optimise(reference, tmp_path / "plaques", preset="high", trials=2, plaque_model=shipped_model,
                       multi_objective=True, **{**TINY, "size": (304, 236)})
     start, other = _trials(tmp_path / "plaques")
-    assert start["state"] == "complete" and 0 < start["plaque_sizes"] < 1
+    assert start["state"] == "complete" and 0 < start["plaque_sizes"] < 1 and 0 <= start["plaques_found"] < 2
     # the second trial's three tiny renders hold no plaque the model finds: recorded as failed, not fatal
     assert other["state"] == "fail" and "no plaques in one of the sets" in other["error"]
-    assert "plaque_sizes" in result.report["objectives"]
+    assert {"plaque_sizes", "plaques_found"} <= set(result.report["objectives"])
     for part in ("fit", "check"):
-        assert result.report["evaluation"][part]["best"]["plaque_sizes"] >= 0
+        assert {"plaque_sizes", "plaques_found"} <= set(result.report["evaluation"][part]["best"])
 
 
 def test_a_missing_plaque_model_is_refused_before_writing(reference, weights, tmp_path):

@@ -462,12 +462,12 @@ def build_server(workspace: Workspace, limits: Limits | None = None) -> Platesyn
         weights: Annotated[
             dict[str, float] | None,
             Field(description="weights of the objective's terms (fd_images, fd_wells, dnf, entropy_gap, plaque_sizes, "
-                              "fid_inception)"),
+                              "plaques_found, fid_inception)"),
         ] = None,
         plaque_model: Annotated[
             str | None,
             Field(description="a model folder (e.g. the shipped models/plaque12) that measures plaque sizes in renders "
-                              "and photos alike: adds the plaque_sizes term"),
+                              "and photos alike: adds the plaque_sizes and plaques_found terms"),
         ] = None,
         multi_objective: bool = False,
         compare: Annotated[list[Preset], Field(description="presets also measured in the report")] = [],  # noqa: B006

@@ -108,7 +108,7 @@ def optimise(
     plaque_model: Annotated[
         Path | None,
         typer.Option("--plaque-model", help="Segmentation model (e.g. models/plaque12) measuring plaque sizes in "
-                     "renders and photos alike: adds the plaque_sizes term."),
+                     "renders and photos alike: adds the plaque_sizes and plaques_found terms."),
     ] = None,
     multi_objective: Annotated[
         bool, typer.Option("--multi-objective", help="Optimise the terms together (a Pareto front).")

@@ -15,6 +15,10 @@ well masks nearest-neighbour), the photos resized to it once. The terms (:data:`
   have no masks, so both sets are measured alike: by that segmentation model's wells and plaques
   (:func:`~platesynth.segment.predict.predict_image`), not by the renders' true masks, which hold plaques too small or
   faint for anyone to see;
+- ``plaques_found``: ``|log10 of the ratio of plaques found per image, renders over photos|`` (decades), by the same
+  model. The counts themselves are matched to a person's (the search leaves them out), so this measures how many of
+  the plaques can be seen: without it a search may hide its plaques, leaving a few that happen to have the photos'
+  sizes;
 - ``fid_inception``: the Fréchet distance of InceptionV3 features, only where its weights are found locally.
 
 The single objective is their weighted sum (:data:`DEFAULT_WEIGHTS`, :func:`weighted_sum`).
@@ -36,18 +40,22 @@ from platesynth.data.layout import Manifest
 from platesynth.errors import MetricUndefinedError, ParameterError
 
 PLAQUE_WEIGHT = 100.0
-"""Weight of one decade of ``plaque_sizes`` (plaques twice the photos' area: 0.3 decades, 30 units)."""
+"""Weight of one decade of ``plaque_sizes`` and of ``plaques_found`` (plaques twice the photos' area, or half as
+many found: 0.3 decades, 30 units)."""
 
-TERMS = ("fd_images", "fd_wells", "dnf", "entropy_gap", "plaque_sizes", "fid_inception")
-"""The objective's terms, in the order they are reported (``plaque_sizes`` only with a plaque model, ``fid_inception``
-only with its weights)."""
+TERMS = ("fd_images", "fd_wells", "dnf", "entropy_gap", "plaque_sizes", "plaques_found", "fid_inception")
+"""The objective's terms, in the order they are reported (``plaque_sizes`` and ``plaques_found`` only with a plaque
+model, ``fid_inception`` only with its weights)."""
 
 DEFAULT_WEIGHTS = {"fd_images": 1.0, "fd_wells": 1.0, "dnf": 20.0, "entropy_gap": 20.0, "plaque_sizes": PLAQUE_WEIGHT,
-                   "fid_inception": 1.0}
+                   "plaques_found": PLAQUE_WEIGHT, "fid_inception": 1.0}
 """Weights of the single objective: the Fréchet distances count as they are (tens to hundreds), one unit of dNf
-and one bit of entropy gap as 20 of them, one decade of plaque sizes as ``PLAQUE_WEIGHT``."""
+and one bit of entropy gap as 20 of them, one decade of plaque sizes or counts as ``PLAQUE_WEIGHT``."""
 
-OPTIONAL_TERMS = ("plaque_sizes", "fid_inception")
+PLAQUE_TERMS = ("plaque_sizes", "plaques_found")
+"""The terms measured with a plaque model."""
+
+OPTIONAL_TERMS = (*PLAQUE_TERMS, "fid_inception")
 """Terms measured only where what they need is given: a plaque model, the Inception weights."""
 
 ENTROPY_SUBSETS = 10
@@ -64,7 +72,7 @@ class MeasureSettings:
     crop_size : side of the well crops.
     grid : (rows, cols) of the plates in the photos (for :func:`~platesynth.metrics.wells.fit_plate_grid`).
     inception_weights : the InceptionV3 weight file where found locally, else None (no ``fid_inception``).
-    plaque_model : a segmentation model's folder that measures the plaques, else None (no ``plaque_sizes``).
+    plaque_model : a segmentation model's folder that measures the plaques, else None (no :data:`PLAQUE_TERMS`).
     """
 
     compare_size: tuple[int, int]
@@ -218,9 +226,11 @@ def compare(measured: MeasuredSet, reference: Reference) -> dict[str, float]:
         "dnf": abs(reference.measured.nf_mean - measured.nf_mean),
         "entropy_gap": abs(entropy_of(measured, subset) - reference.entropy),
     }
-    if measured.plaque_area_fractions is not None and reference.measured.plaque_area_fractions is not None:
-        terms["plaque_sizes"] = plaque_area_distance(measured.plaque_area_fractions,
-                                                     reference.measured.plaque_area_fractions)
+    mine, theirs = measured.plaque_area_fractions, reference.measured.plaque_area_fractions
+    if mine is not None and theirs is not None:
+        terms["plaque_sizes"] = plaque_area_distance(mine, theirs)  # refuses a set without plaques
+        per_image = (mine.size / measured.count) / (theirs.size / len(reference.names))
+        terms["plaques_found"] = abs(math.log10(per_image))
     if measured.inception is not None and reference.measured.inception is not None:
         terms["fid_inception"] = frechet_distance(measured.inception, reference.measured.inception)
     return terms

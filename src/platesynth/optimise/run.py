@@ -24,6 +24,7 @@ from platesynth.limits import check_dataset_metrics, check_render
 from platesynth.metrics.wells import CROP_SIZE
 from platesynth.optimise import report as files
 from platesynth.optimise.objective import (
+    PLAQUE_TERMS,
     TERMS,
     MeasureSettings,
     TrialItem,
@@ -175,7 +176,7 @@ def optimise(
     weights : dict, optional
         Weights of the terms in the single objective, over :data:`~platesynth.optimise.objective.DEFAULT_WEIGHTS`.
     plaque_model : str or path-like, optional
-        A segmentation model's folder (e.g. ``models/plaque12``): adds the ``plaque_sizes`` term, the plaques it finds
+        A segmentation model's folder (e.g. ``models/plaque12``): adds the ``plaque_sizes`` and ``plaques_found`` terms, the plaques it finds
         in the renders against those it finds in the photos. Each trial then also runs the model on its images.
     multi_objective : bool
         Optimise every term with a positive weight at once (a Pareto front); the best configuration is then the
@@ -252,7 +253,7 @@ def optimise(
         load_model(plaque_model)  # a missing or unfinished model is refused here, before anything is written
     settings = MeasureSettings(compare_size=compare_size, crop_size=well_size, inception_weights=inception,
                                plaque_model=plaque_model)
-    available = {"fid_inception": inception is not None, "plaque_sizes": plaque_model is not None}
+    available = {"fid_inception": inception is not None, **{t: plaque_model is not None for t in PLAQUE_TERMS}}
     present = [t for t in TERMS if weights[t] > 0 and available.get(t, True)]
     objectives = present if multi_objective else None
     if multi_objective and len(present) < 2:
