@@ -176,8 +176,9 @@ def optimise(
     weights : dict, optional
         Weights of the terms in the single objective, over :data:`~platesynth.optimise.objective.DEFAULT_WEIGHTS`.
     plaque_model : str or path-like, optional
-        A segmentation model's folder (e.g. ``models/plaque12``): adds the ``plaque_sizes`` and ``plaques_found`` terms, the plaques it finds
-        in the renders against those it finds in the photos. Each trial then also runs the model on its images.
+        A segmentation model's folder (e.g. ``models/plaque12``): adds the ``plaque_sizes`` and ``plaques_found``
+        terms, the plaques it finds in the renders against those it finds in the photos. Each trial then also runs
+        the model on its images.
     multi_objective : bool
         Optimise every term with a positive weight at once (a Pareto front); the best configuration is then the
         Pareto-optimal trial with the lowest weighted sum.
@@ -211,6 +212,8 @@ def optimise(
         For a missing or empty reference folder, or an unreadable photo.
     WeightsNotFoundError
         If the AlexNet weights cannot be found.
+    DatasetError, UnfinishedModelError
+        If ``plaque_model`` is not a finished model folder.
     """
     try:
         import optuna  # noqa: F401 -- refused early, with the install hint, where Optuna is missing
