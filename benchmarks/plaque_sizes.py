@@ -4,8 +4,9 @@ Every image, real or rendered, is measured alike: the model's predicted wells an
 (:func:`platesynth.optimise.objective.plaque_area_fractions`), each plaque's area as a share of its well's. The
 renders' true masks would hold plaques too small or faint for anyone to see, so they are not used. Prints the 10th,
 25th, 50th, 75th and 90th percentiles of the area fractions (per mille of the well), the plaques found per image
-(and, for renders, the plaques their true masks hold per image: how many the model can see), and the ``plaque_sizes`` term of ``platesynth optimise`` (:func:`platesynth.metrics.wells.plaque_area_distance`,
-decades) of each preset against each half of the photos (fit: Brisbane and IBV; check: PR8).
+(and, for renders, the plaques their true masks hold per image: how many the model can see), and the
+``plaque_sizes`` term of ``platesynth optimise`` (:func:`platesynth.metrics.wells.plaque_area_distance`, decades) of
+each preset against each half of the photos (fit: Brisbane and IBV; check: PR8).
 
 Run: ``python benchmarks/plaque_sizes.py`` (``--presets high,low,runs/opt/best.yaml``, ``--images N``,
 ``--model DIR``).

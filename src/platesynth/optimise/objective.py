@@ -134,7 +134,9 @@ def _extractors(settings: MeasureSettings) -> tuple[Any, Any]:
 
 
 @lru_cache(maxsize=2)
-def _segmentation_model(model_dir: str) -> Any:
+def segmentation_model(model_dir: str) -> Any:
+    """The segmentation model of ``model_dir``, loaded once per process (:func:`~platesynth.segment.model.load_model`:
+    a missing or unfinished model is refused)."""
     from platesynth.segment.model import load_model
 
     return load_model(model_dir)
@@ -150,7 +152,7 @@ def plaque_area_fractions(images: Sequence[np.ndarray], model_dir: str) -> np.nd
     from platesynth.metrics.wells import plaque_measurements
     from platesynth.segment.predict import predict_image
 
-    model = _segmentation_model(model_dir)
+    model = segmentation_model(model_dir)
     fractions = []
     for image in images:
         found = predict_image(model, image)

@@ -32,6 +32,7 @@ from platesynth.optimise.objective import (
     check_weights,
     measure_reference,
     resized,
+    segmentation_model,
     weighted_sum,
 )
 from platesynth.optimise.reference import CHECK_FRACTION, read_photos, split_reference
@@ -250,10 +251,8 @@ def optimise(
     resolve_weights("alexnet")
     inception = _inception_weights()
     if plaque_model is not None:
-        from platesynth.segment.model import load_model
-
         plaque_model = files.resolve(plaque_model)
-        load_model(plaque_model)  # a missing or unfinished model is refused here, before anything is written
+        segmentation_model(plaque_model)  # refused here, before anything is written; kept for the photos
     settings = MeasureSettings(compare_size=compare_size, crop_size=well_size, inception_weights=inception,
                                plaque_model=plaque_model)
     available = {"fid_inception": inception is not None, **{t: plaque_model is not None for t in PLAQUE_TERMS}}
