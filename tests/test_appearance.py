@@ -116,3 +116,31 @@ def test_lysed_density_sets_how_pale_a_lysed_well_is(base_scene):
         return float((green - ndimage.gaussian_filter(green, 0.5 * TEXELS_PER_MM)).std())
 
     assert fine_detail(grainy) > 1.25 * fine_detail(smooth)  # 1.36 measured (strands and drying detail remain)
+
+
+def test_lysed_paleness_moves_a_lysed_wells_remnant_to_the_pale_colour(base_scene):
+    scene, well = base_scene
+    other = next(w for w in scene.wells if w.id != well.id and not w.emptied)
+    lysed = scene.model_copy(update={
+        "plaques": (), "wells": tuple(w.model_copy(update={"lysed": w.id == well.id}) for w in scene.wells)})
+    reach = int(3 * TEXELS_PER_MM)
+
+    def window(floor: np.ndarray, w) -> np.ndarray:
+        row, col = (int(c * TEXELS_PER_MM) for c in w.center_mm[::-1])
+        return floor[row - reach: row + reach, col - reach: col + reach].reshape(-1, 3).astype(np.float64)
+
+    def absorbance_ratios(floor: np.ndarray, w) -> np.ndarray:  # red and blue absorbance over green's
+        absorbance = -np.log(window(floor, w)).mean(axis=0)
+        return absorbance[[0, 2]] / absorbance[1]
+
+    pale = {"lysed_paleness": 1.0, "lysed_hue_deg": 240.0, "lysed_saturation": 0.5}
+    plate_colour = appearance.floor_transmittance(lysed, TEXELS_PER_MM)
+    pale_colour = appearance.floor_transmittance(
+        lysed.model_copy(update={"stain": lysed.stain.model_copy(update=pale)}), TEXELS_PER_MM)
+    # the remnant takes the colour of hue 240 deg, saturation 0.5: red absorbs as much as green, more than blue
+    pale_stain = lysed.stain.model_copy(update={"hue_deg": 240.0, "saturation": 0.5})
+    expected = appearance.stain_absorbance(pale_stain)
+    np.testing.assert_allclose(absorbance_ratios(pale_colour, well), expected[[0, 2]] / expected[1], atol=0.02)
+    assert not np.allclose(absorbance_ratios(plate_colour, well), expected[[0, 2]] / expected[1], atol=0.1)
+    # intact wells keep the plate's colour
+    assert window(pale_colour, other).tolist() == window(plate_colour, other).tolist()

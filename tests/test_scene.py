@@ -41,11 +41,11 @@ def test_presets_load_and_sample_json_roundtrip(preset):
 # sha256 of sample_scene(load_config(preset), 3).model_dump_json(): sampling must not change without intent (a change
 # here changes every dataset rendered from these presets). Update only for a deliberate change of the sampling.
 SCENE_SHA256_SEED3 = {
-    "diverse": "1159b0ee1f1d068b8dcdc69e715f00131bb3fbe028e4264fb53cc09ee0edd3de",
-    "high": "ea514fd9f782390f82fadfb97097ab9bd8e0fbdcfb3e42c757b03b776bbcfe3e",
-    "lightbox12": "94156080ca84480e0011ebbcb63f45488edf2b3cc412872e264f9d69da109fd1",
-    "low": "7dda90ec1352464f0eefbbc86c2839bd09ae9c1aa97a5306a46530fea83a10ec",
-    "medium": "a7d4e7134b17fc494917d008d7836117b3ff1b52b85e378e8ae4db16848818a8",
+    "diverse": "a61fe810d3755b3f5328279506f93d3e4e2a2edd3783ccbff5376e9e2cde1488",
+    "high": "62e9545f25eb6eb69ac82d5011597a79a5cff4e8128d282cbd8133cc9cb326d0",
+    "lightbox12": "6c5f5bca6795338d93ad315b8382a01474d228d6b68b06f42812d76d9eebef0f",
+    "low": "baaa9c194bf705a568b8910e4f23f23805e9fead4e7a51e2396df90bd254cdc5",
+    "medium": "6da184a3e729e55ec430dfe1a5efd80e6cafe2763956af132fbe518410e5be8b",
 }
 
 
@@ -355,3 +355,18 @@ def test_cli_scene_catalogue_json_and_errors():
     result = runner.invoke(app, ["scene", "sample", "--preset", "low", "--seed", "3"])
     assert result.exit_code == 0
     assert Scene.model_validate(json.loads(result.stdout)) == sample_scene(load_config("low"), 3)
+
+
+def test_lysed_paleness_draws_the_remnants_colour_from_the_pale_palette_and_nothing_else():
+    pale = {"stain.lysed_paleness": [0.5, 1.0], "stain.pale_hue_deg": [236, 248], "stain.pale_saturation": [0.4, 0.65]}
+    for seed in range(6):
+        usual = sample_scene(load_config("high", overrides={"stain.lysed_paleness": 0.0}), seed)
+        assert usual.stain.lysed_paleness == 0.0 and usual.stain.lysed_hue_deg is None
+        thin = sample_scene(load_config("high", overrides=pale), seed)
+        assert 0.5 <= thin.stain.lysed_paleness <= 1.0
+        assert 236 <= thin.stain.lysed_hue_deg <= 248 and 0.4 <= thin.stain.lysed_saturation <= 0.65
+        # drawn from a stream of its own: every other parameter of the scene is the one drawn without it
+        colour = ("lysed_paleness", "lysed_hue_deg", "lysed_saturation")
+        same = usual.model_copy(update={"stain": usual.stain.model_copy(
+            update={name: getattr(thin.stain, name) for name in colour})})
+        assert same == thin

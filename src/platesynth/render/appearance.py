@@ -40,7 +40,7 @@ from platesynth.render.textures import (
     plate_grid_index,
     scene_textures,
 )
-from platesynth.scene.concrete import Scene, Well
+from platesynth.scene.concrete import Scene, Stain, Well
 from platesynth.scene.sample import stain_rgb
 
 # ---- the monolayer
@@ -128,6 +128,9 @@ STAIN_DTYPE = np.dtype(
         ("absorbance_r", np.float64),  # -log of the stain's linear colour: the absorbance at density 1
         ("absorbance_g", np.float64),
         ("absorbance_b", np.float64),
+        ("lysed_absorbance_r", np.float64),  # the same for what a lysed well keeps (stain.lysed_paleness)
+        ("lysed_absorbance_g", np.float64),
+        ("lysed_absorbance_b", np.float64),
     ]
 )
 """The plate-wide stain (a one-row array, :func:`stain_table`)."""
@@ -165,12 +168,22 @@ def well_table(wells: list[Well], top_centres: np.ndarray, well_offsets: np.ndar
 def stain_table(scene: Scene, textures: SceneTextures) -> np.ndarray:
     """The scene's plate-wide stain as a one-row :data:`STAIN_DTYPE` array."""
     stain = scene.stain
-    absorbance = -np.log(np.clip(srgb_to_linear(stain_rgb(stain)), 1e-3, 1.0))
+    absorbance = stain_absorbance(stain)
+    lysed_absorbance = absorbance
+    if stain.lysed_paleness > 0.0:
+        pale = stain_absorbance(stain.model_copy(update={"hue_deg": stain.lysed_hue_deg,
+                                                          "saturation": stain.lysed_saturation}))
+        lysed_absorbance = (1.0 - stain.lysed_paleness) * absorbance + stain.lysed_paleness * pale
     table = np.zeros(1, dtype=STAIN_DTYPE)
     table[0] = (stain.unevenness, textures.low_cell_mm, stain.centre_elongation, stain.rim_clearing_mm,
                 stain.translucency, stain.rim_mottle, stain.rim_mottle_mm, stain.lysed_density, stain.lysed_residue, stain.lysed_strands,
-                stain.lysed_grain, *absorbance)
+                stain.lysed_grain, *absorbance, *lysed_absorbance)
     return table
+
+
+def stain_absorbance(stain: Stain) -> np.ndarray:
+    """Absorbance per linear RGB channel of ``stain`` at density 1: -log of its colour at nominal density."""
+    return -np.log(np.clip(srgb_to_linear(stain_rgb(stain)), 1e-3, 1.0))
 
 
 def plaque_table(scene: Scene, wells: list[Well], top_centres: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -257,9 +270,16 @@ def changed_density(density, u, v, well, clearing, rim, scratched, speck, residu
 
 
 @njit(cache=True, nogil=True, inline="always")
-def stain_transmittance(density, stain):
-    """Linear RGB transmittance of a layer of ``density`` (Beer-Lambert; the translucent share passes)."""
+def stain_transmittance(density, stain, lysed):
+    """Linear RGB transmittance of a layer of ``density`` (Beer-Lambert; the translucent share passes); ``lysed``
+    (0 or 1, a well's flag) takes the colour of what a lysed well keeps."""
     t = stain.translucency
+    if lysed > 0.5:
+        return (
+            t + (1.0 - t) * math.exp(-density * stain.lysed_absorbance_r),
+            t + (1.0 - t) * math.exp(-density * stain.lysed_absorbance_g),
+            t + (1.0 - t) * math.exp(-density * stain.lysed_absorbance_b),
+        )
     return (
         t + (1.0 - t) * math.exp(-density * stain.absorbance_r),
         t + (1.0 - t) * math.exp(-density * stain.absorbance_g),
@@ -516,7 +536,7 @@ def _bake_floor(texel_mm, a1x, a1y, pitch, rows, cols, radius, wells, stain, low
                                         mottle_tile)
             density = changed_density(density, u, v, well, clearing[y, x], rim[y, x], scratched[y, x], specks[y, x],
                                       residual_tile)
-            r, g, b = stain_transmittance(density, st)
+            r, g, b = stain_transmittance(density, st, well.lysed)
             out[y, x, 0] = r
             out[y, x, 1] = g
             out[y, x, 2] = b

@@ -114,6 +114,9 @@ class StainConfig(Section):
     lysed_residue: Dist = number(0.04, 0.0, 1.0, "", "share of the layer a lysed well keeps everywhere (a pale film)")
     lysed_strands: Dist = number(1.0, 0.0, 3.0, "", "strength of the network of strands a lysed well keeps")
     lysed_grain: Dist = number(0.0, 0.0, 3.0, "", "granular texture of what a lysed well keeps")
+    lysed_paleness: Dist = number(
+        0.0, 0.0, 1.0, "", "how far the colour of what a lysed well keeps moves from the plate's stain toward a pale, "
+        "bluish one drawn from pale_hue_deg and pale_saturation (a thin film of damaged cells): 0 the plate's, 1 the pale")
     centre_gradient_factor: Dist = number([0.5, 1.0], 0.0, 2.0, "", "each well's factor on centre_gradient")
     centre_offset: Dist = number(0.15, 0.0, 1.0, "",
                                  "sd of a dark centre's offset from the well centre, per axis, fraction of its radius")

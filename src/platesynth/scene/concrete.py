@@ -79,6 +79,10 @@ class Stain(_Concrete):
     lysed_residue: float = Field(0.04, description="share of the layer a lysed well keeps everywhere (a pale film)")
     lysed_strands: float = Field(1.0, description="strength of the network of strands a lysed well keeps")
     lysed_grain: float = Field(0.0, description="granular texture of what a lysed well keeps (relative, per sd)")
+    lysed_paleness: float = Field(
+        0.0, description="how far the colour of what a lysed well keeps moves from the plate's toward the pale one, 0..1")
+    lysed_hue_deg: float | None = Field(None, description="hue of the pale colour of what a lysed well keeps, degrees")
+    lysed_saturation: float | None = Field(None, description="saturation of that pale colour at nominal density, 0..1")
 
 
 class WellStain(_Concrete):

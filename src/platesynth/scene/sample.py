@@ -186,6 +186,12 @@ def sample_scene(config: SceneConfig, seed: int) -> Scene:
     palette = scene_rng(seed, "stain_palette")  # drawn beside the main order: scenes drawn before stay
     if palette.random() < c.stain.draw("pale_plates", palette):
         hue_deg, saturation = c.stain.draw("pale_hue_deg", palette), c.stain.draw("pale_saturation", palette)
+    lysed_palette = scene_rng(seed, "lysed_palette")  # the colour of what lysed wells keep, likewise
+    lysed_paleness = c.stain.draw("lysed_paleness", lysed_palette)
+    lysed_colour = {}
+    if lysed_paleness > 0.0:
+        lysed_colour = {"lysed_paleness": lysed_paleness, "lysed_hue_deg": c.stain.draw("pale_hue_deg", lysed_palette),
+                        "lysed_saturation": c.stain.draw("pale_saturation", lysed_palette)}
     stain = Stain(
         hue_deg=hue_deg,
         saturation=saturation,
@@ -195,6 +201,7 @@ def sample_scene(config: SceneConfig, seed: int) -> Scene:
         centre_elongation=c.stain.draw("centre_elongation", rng),
         rim_clearing_mm=c.stain.draw("rim_clearing_mm", rng),
         translucency=c.stain.draw("translucency", rng),
+        **lysed_colour,
     )
     density = c.stain.draw("density", rng)
     jitter = c.stain.draw("well_density_jitter", rng)

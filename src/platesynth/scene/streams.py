@@ -10,7 +10,8 @@ from __future__ import annotations
 
 import numpy as np
 
-STREAMS = ("well_offsets", "unevenness", "fibres", "desk", "fine", "residual", "post", "mottle", "stain_palette")
+STREAMS = ("well_offsets", "unevenness", "fibres", "desk", "fine", "residual", "post", "mottle", "stain_palette",
+           "lysed_palette")
 """The random streams of a scene's seed, in the order they are spawned (append new ones at the end)."""
 
 
