@@ -6,7 +6,8 @@ dNf = |nf_real - nf|, the pixel entropy (size-matched: mean over subsets as larg
 grows with the number of images) and the brightness variability, all from :func:`platesynth.metrics.dataset_metrics`;
 then the well-crop metrics of :mod:`platesynth.metrics.wells` (wells of the renders from their true masks, wells of
 the photos from a fitted 3x4 grid, crops of 128x128): ``fd_wells`` and ``kid_wells`` (AlexNet features of the
-crops), ``dnf_wells`` (|difference of the crops' mean Nf|), ``spec_wells`` (RMS difference of the mean log10
+crops), ``nn_acc_wells`` (leave-one-out accuracy of the nearest neighbour in that feature space at telling the
+renders' wells from the photos': 0.5 when they cannot be told apart; not measured for the real set), ``dnf_wells`` (|difference of the crops' mean Nf|), ``spec_wells`` (RMS difference of the mean log10
 power spectra of the monolayer, decades: the renders' plaques left out, the photos' kept as they have no masks) and
 ``spec_w_plaques`` (the same with plaques kept in both sets, like for like).
 
@@ -33,7 +34,7 @@ from shared_split import split_folder
 ROOT = Path(__file__).resolve().parents[1]
 SHARED = Path(os.environ.get("PLATESYNTH_SHARED", ROOT.parent / "shared"))
 COLUMNS = ("fd_alexnet", "kid_alexnet", "nf", "dnf", "entropy", "brightness_var", "fd_wells", "kid_wells",
-           "dnf_wells", "spec_wells", "spec_w_plaques")
+           "nn_acc_wells", "dnf_wells", "spec_wells", "spec_w_plaques")
 
 
 def _size(text: str) -> tuple[int, int]:
@@ -145,6 +146,7 @@ def main(argv: list[str] | None = None) -> None:
                 "brightness_var": metrics["brightness_variability"],
                 "fd_wells": wells["fd_wells"],
                 "kid_wells": wells["kid_wells"],
+                "nn_acc_wells": wells["nn_accuracy_wells"],
                 "dnf_wells": wells["dnf_wells"],
                 "spec_wells": wells["spectrum_distance_wells"],
                 "spec_w_plaques": wells["spectrum_distance_wells_with_plaques"],
@@ -158,6 +160,7 @@ def main(argv: list[str] | None = None) -> None:
                 "brightness_var": metrics["brightness_variability_reference"],
                 "fd_wells": 0.0,
                 "kid_wells": 0.0,
+                "nn_acc_wells": float("nan"),  # not measured: a set against itself
                 "dnf_wells": 0.0,
                 "spec_wells": 0.0,
                 "spec_w_plaques": 0.0,

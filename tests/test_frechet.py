@@ -18,6 +18,7 @@ from platesynth.metrics.frechet import (
     frechet_distance_from_stats,
     get_feature_extractor,
     kernel_distance,
+    nearest_neighbour_accuracy,
     patch_frechet_distance,
     split_into_patches,
 )
@@ -160,6 +161,44 @@ def test_kid_seeded_and_sensitive():
     assert abs(same) < 0.2 * shifted
     with pytest.raises(MetricUndefinedError):
         kernel_distance(a[:1], b)
+
+
+# ---------------------------------------------------------------- 1-NN two-sample accuracy
+
+def test_nearest_neighbour_accuracy_by_hand():
+    # a: 0, 1.2, 10; b: 2, 11, 12.5 (1-d). Nearest other point: 0->1.2 (a, right), 1.2->2 (b, wrong),
+    # 10->11 (b, wrong), 2->1.2 (a, wrong), 11->10 (a, wrong), 12.5->11 (b, right): 2 of 6
+    a, b = np.array([[0.0], [1.2], [10.0]]), np.array([[2.0], [11.0], [12.5]])
+    assert nearest_neighbour_accuracy(a, b) == pytest.approx(2 / 6)
+
+
+def test_nearest_neighbour_accuracy_separated_mixed_and_balanced():
+    rng = np.random.default_rng(6)
+    a, b = rng.normal(size=(200, 8)), rng.normal(size=(300, 8))
+    assert nearest_neighbour_accuracy(a, b + 20.0) == 1.0  # two far clusters: every neighbour is of its own set
+    same = nearest_neighbour_accuracy(a, b)  # one distribution: about chance (the larger set subsampled to 200)
+    assert 0.4 < same < 0.6
+    assert nearest_neighbour_accuracy(a, b, seed=1) == nearest_neighbour_accuracy(a, b, seed=1)
+    assert nearest_neighbour_accuracy(a, a.copy()) == 0.0  # copies: each sample's nearest is its twin, of the other set
+    with pytest.raises(MetricUndefinedError):
+        nearest_neighbour_accuracy(a[:1], b)
+
+
+def test_nearest_neighbour_accuracy_looks_outside_a_samples_group():
+    # both sets: 12 groups (plates) of 6 samples (wells) sharing their group's offset, from one distribution
+    rng = np.random.default_rng(7)
+
+    def plates() -> np.ndarray:
+        return (rng.normal(0, 3, size=(12, 1, 4)) + rng.normal(0, 0.1, size=(12, 6, 4))).reshape(72, 4)
+
+    a, b, groups = plates(), plates(), np.repeat(np.arange(12), 6)
+    assert nearest_neighbour_accuracy(a, b) == 1.0  # every nearest neighbour is a well of the same plate
+    assert 0.3 < nearest_neighbour_accuracy(a, b, groups, groups) < 0.7  # other plates: about chance
+    with pytest.raises(ShapeMismatchError):
+        nearest_neighbour_accuracy(a, b, groups[:5], groups)
+    # one group per set: every neighbour is of the other set
+    assert nearest_neighbour_accuracy(a[:6], b[:6], groups[:6], groups[:6]) == 0.0
+
 
 
 # ---------------------------------------------------------------- patches

@@ -321,6 +321,8 @@ def test_identical_sets_are_at_distance_zero_and_a_changed_set_is_farther(offlin
     changed = compare_well_crops(crops_of(range(3), noisier), reference)  # noise 6 -> 26 gray levels
     assert 0 < alike["fd_wells"] < changed["fd_wells"] / 2
     assert abs(alike["kid_wells"]) * 100 < changed["kid_wells"]
+    assert same["nn_accuracy_wells"] == 0.0  # each crop's nearest neighbour is its copy in the other set
+    assert changed["nn_accuracy_wells"] == 1.0 and alike["nn_accuracy_wells"] < 1.0  # noise sets them apart
     assert alike["spectrum_distance_wells"] < 0.1 and changed["spectrum_distance_wells"] > 0.5
     assert alike["dnf_wells"] < 0.05 and changed["dnf_wells"] > 0.2
     assert 0 < alike["plaque_area_distance"] < 0.1  # other random plaques of the same size range

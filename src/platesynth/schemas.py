@@ -202,6 +202,7 @@ class DatasetMetrics(_Open):
     fd_wells: float | None = None
     kid_wells: float | None = None
     kid_wells_std: float | None = None
+    nn_accuracy_wells: float | None = None
     nf_wells: float | None = None
     nf_wells_reference: float | None = None
     dnf_wells: float | None = None

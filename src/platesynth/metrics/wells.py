@@ -4,7 +4,8 @@ Every well of a plate image is cut out as a square around its disc, resized to o
 measured, so that a synthetic and a real set of wells can be compared well by well instead of plate by plate:
 
 * deep features of the crops: Fréchet distance and KID of AlexNet features (``fd_wells``, ``kid_wells``, with
-  :mod:`platesynth.metrics.frechet`);
+  :mod:`platesynth.metrics.frechet`), and how often a crop's nearest neighbour in that space is of its own set
+  (``nn_accuracy_wells``: 0.5 when real and synthetic wells cannot be told apart);
 * naturalness of the crops: mean Nf and ``dnf_wells`` (:func:`platesynth.metrics.naturalness.naturalness_factor`);
 * texture of the monolayer: the radially averaged power spectrum inside the well disc, plaques left out where a
   plaque mask exists, and the RMS difference of the two sets' mean log-spectra (``spectrum_distance_wells``); the
@@ -543,6 +544,7 @@ class WellCrops:
 
             self.statistics = FeatureStatistics(self.extractor)
         self.count = 0
+        self.plates: list[int] = []  # per crop: which update (plate image) it came from
         self.nf: list[float] = []
         self.log_spectra: list[np.ndarray] = []  # per crop: plaques left out where a plaque mask is given
         self.log_spectra_with_plaques: list[np.ndarray] = []  # per crop: every pixel of the window
@@ -597,6 +599,7 @@ class WellCrops:
             crops.append(crop)
         if self.statistics is not None and crops:
             self.statistics.update(crops)
+        self.plates.extend([self.plates[-1] + 1 if self.plates else 0] * len(crops))
         self.count += len(crops)
         if plaques is not None:
             measured = plaque_measurements(image, wells, plaques, well_radius_mm)
@@ -697,9 +700,12 @@ def compare_well_crops(synthetic: WellCrops, reference: WellCrops) -> dict[str, 
         Every key of :meth:`WellCrops.compute` for the synthetic set, the same with ``_reference`` appended for the
         reference set, and the distances:
 
-        - ``fd_wells``, ``kid_wells``, ``kid_wells_std`` (when both sets have deep features and at least 2 crops):
-          :func:`~platesynth.metrics.frechet.frechet_distance` and :func:`~platesynth.metrics.frechet.kernel_distance`
-          of the crops' features;
+        - ``fd_wells``, ``kid_wells``, ``kid_wells_std``, ``nn_accuracy_wells`` (when both sets have deep features
+          and at least 2 crops): :func:`~platesynth.metrics.frechet.frechet_distance`,
+          :func:`~platesynth.metrics.frechet.kernel_distance` and
+          :func:`~platesynth.metrics.frechet.nearest_neighbour_accuracy` of the crops' features (the last: how
+          well they tell the two sets apart, 0.5 not at all, 1 always; a crop's neighbours are sought in the
+          other plates only, as the wells of one plate share its light and stain);
         - ``dnf_wells = |nf_wells_reference - nf_wells|``;
         - ``spectrum_distance_wells``: :func:`spectrum_distance` of the two mean log10 spectra (decades), plaques
           left out where a set has plaque masks; ``spectrum_distance_wells_with_plaques``: of the spectra with
@@ -717,12 +723,14 @@ def compare_well_crops(synthetic: WellCrops, reference: WellCrops) -> dict[str, 
 
     result: dict[str, Any] = both("n_wells", "wells_from")
     if synthetic.statistics is not None and reference.statistics is not None:
-        from platesynth.metrics.frechet import frechet_distance, kernel_distance
+        from platesynth.metrics.frechet import frechet_distance, kernel_distance, nearest_neighbour_accuracy
 
         if synthetic.count >= 2 and reference.count >= 2:
             features, reference_features = synthetic.statistics.features, reference.statistics.features
             result["fd_wells"] = frechet_distance(features, reference_features)
             result["kid_wells"], result["kid_wells_std"] = kernel_distance(features, reference_features)
+            result["nn_accuracy_wells"] = nearest_neighbour_accuracy(
+                features, reference_features, groups_a=synthetic.plates, groups_b=reference.plates)
     result.update(both("nf_wells"))
     result["dnf_wells"] = abs(theirs["nf_wells"] - mine["nf_wells"])
     for key in ("spectrum_wells", "spectrum_wells_with_plaques"):
