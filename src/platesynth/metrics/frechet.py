@@ -64,6 +64,14 @@ def _check_same_dimension(a: np.ndarray, b: np.ndarray) -> None:
         raise ShapeMismatchError(f"feature dimensions differ: {a.shape[1]} vs {b.shape[1]}")
 
 
+def _check_feature_sets(features_a: np.ndarray, features_b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Both sets as float64 ``(N, D)`` arrays of one dimension, each of at least 2 finite samples."""
+    a = _check_features(features_a, "first feature set")
+    b = _check_features(features_b, "second feature set")
+    _check_same_dimension(a, b)
+    return a, b
+
+
 def frechet_distance_from_stats(
     mu1: np.ndarray, sigma1: np.ndarray, mu2: np.ndarray, sigma2: np.ndarray, eps: float = 1e-6
 ) -> float:
@@ -136,9 +144,7 @@ def frechet_distance(features_a: np.ndarray, features_b: np.ndarray) -> float:
     sample space: with centred features ``A`` and ``B``, ``tr sqrtm(cov_a cov_b)`` is the sum of the singular values
     of ``A B^T`` divided by ``sqrt((N_a - 1)(N_b - 1))``. Otherwise :func:`frechet_distance_from_stats` is used.
     """
-    a = _check_features(features_a, "first feature set")
-    b = _check_features(features_b, "second feature set")
-    _check_same_dimension(a, b)
+    a, b = _check_feature_sets(features_a, features_b)
     n_a, n_b, dim = a.shape[0], b.shape[0], a.shape[1]
     if n_a * n_b > dim * dim:
         return frechet_distance_from_stats(a.mean(axis=0), np.cov(a, rowvar=False), b.mean(axis=0),
@@ -184,9 +190,7 @@ def kernel_distance(
     MetricUndefinedError
         If a set has fewer than 2 samples.
     """
-    a = _check_features(features_a, "first feature set")
-    b = _check_features(features_b, "second feature set")
-    _check_same_dimension(a, b)
+    a, b = _check_feature_sets(features_a, features_b)
     if n_subsets < 1 or subset_size < 2:
         raise ParameterError(
             f"kernel distance needs n_subsets >= 1 and subset_size >= 2, got {n_subsets} and {subset_size}"
@@ -239,9 +243,7 @@ def nearest_neighbour_accuracy(
     MetricUndefinedError
         If a set has fewer than 2 samples.
     """
-    a = _check_features(features_a, "first feature set")
-    b = _check_features(features_b, "second feature set")
-    _check_same_dimension(a, b)
+    a, b = _check_feature_sets(features_a, features_b)
     labels = []
     for features, groups, what in ((a, groups_a, "first"), (b, groups_b, "second")):
         groups = np.arange(features.shape[0]) if groups is None else np.asarray(groups)
