@@ -7,6 +7,7 @@ import json
 
 import numpy as np
 import pytest
+from pydantic import ValidationError
 from typer.testing import CliRunner
 
 from platesynth.cli import app
@@ -24,6 +25,7 @@ from platesynth.scene import (
     parameter_table,
     sample_scene,
 )
+from platesynth.scene.concrete import Stain
 
 
 @pytest.mark.parametrize("preset", ["high", "medium", "low", "lightbox12", "diverse"])
@@ -370,3 +372,5 @@ def test_lysed_paleness_draws_the_remnants_colour_from_the_pale_palette_and_noth
         same = usual.model_copy(update={"stain": usual.stain.model_copy(
             update={name: getattr(thin.stain, name) for name in colour})})
         assert same == thin
+    with pytest.raises(ValidationError, match="needs lysed_hue_deg"):
+        Stain.model_validate({**usual.stain.model_dump(), "lysed_paleness": 0.5})

@@ -17,7 +17,7 @@ import json
 from pathlib import Path
 from typing import Literal
 
-from pydantic import BaseModel, ConfigDict, Field, ValidationError
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
 
 from platesynth.errors import ParameterError
 
@@ -83,6 +83,12 @@ class Stain(_Concrete):
         0.0, description="how far the colour of what a lysed well keeps moves from the plate's toward the pale one, 0..1")
     lysed_hue_deg: float | None = Field(None, description="hue of the pale colour of what a lysed well keeps, degrees")
     lysed_saturation: float | None = Field(None, description="saturation of that pale colour at nominal density, 0..1")
+
+    @model_validator(mode="after")
+    def _pale_lysed_colour_is_given(self) -> Stain:
+        if self.lysed_paleness > 0.0 and (self.lysed_hue_deg is None or self.lysed_saturation is None):
+            raise ValueError("lysed_paleness > 0 needs lysed_hue_deg and lysed_saturation")
+        return self
 
 
 class WellStain(_Concrete):
