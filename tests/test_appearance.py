@@ -144,3 +144,23 @@ def test_lysed_paleness_moves_a_lysed_wells_remnant_to_the_pale_colour(base_scen
     assert not np.allclose(absorbance_ratios(plate_colour, well), expected[[0, 2]] / expected[1], atol=0.1)
     # intact wells keep the plate's colour
     assert window(pale_colour, other).tolist() == window(plate_colour, other).tolist()
+
+
+def test_the_raster_renderer_draws_the_pale_lysed_colour(base_scene):
+    from platesynth.render.raster import render_raster
+
+    scene, well = base_scene
+    lysed = scene.model_copy(update={
+        "plaques": (), "wells": tuple(w.model_copy(update={"lysed": w.id == well.id}) for w in scene.wells)})
+    pale = lysed.model_copy(update={"stain": lysed.stain.model_copy(
+        update={"lysed_paleness": 1.0, "lysed_hue_deg": 240.0, "lysed_saturation": 0.5})})
+    usual, paler = render_raster(lysed, (480, 360)), render_raster(pale, (480, 360))
+    inside = usual.wells == well.id
+
+    def absorbed_red_over_green(image: np.ndarray) -> float:  # hue 240: red absorbed at least as much as green
+        absorbed = 255.0 - image[inside].astype(np.float64).mean(axis=0)
+        return float(absorbed[0] / absorbed[1])
+
+    assert absorbed_red_over_green(paler.image) > absorbed_red_over_green(usual.image) + 0.1  # 1.14 -> 1.34 measured
+    others = (usual.wells > 0) & ~inside  # the intact wells as they were (but for the post-processing's spread)
+    np.testing.assert_allclose(usual.image[others].mean(axis=0), paler.image[others].mean(axis=0), atol=0.01)

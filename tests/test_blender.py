@@ -272,6 +272,14 @@ def test_the_stain_and_lysed_wells_are_the_raster_renderers(pool):
     b, r = (ndimage.gaussian_filter(image.astype(np.float64).mean(axis=2), 1.0)[inside] for image in (blender.image, raster.image))
     assert np.corrcoef(b, r)[0, 1] > 0.95  # 0.985 measured; 0.45 with Blender's own noise textures
     assert np.abs(b - r).mean() < 10.0  # 5.7 levels measured; 30 with Blender's own remnant model
+    # the pale colour of the remnants (stain.lysed_paleness) reaches Blender through the same floor texture
+    pale = scene.model_copy(update={"stain": scene.stain.model_copy(
+        update={"lysed_paleness": 1.0, "lysed_hue_deg": 240.0, "lysed_saturation": 0.5})})
+    blender_pale, raster_pale = render_blender(pale, size, samples=SAMPLES, pool=pool), render_raster(pale, size)
+    change = [(p.image[inside].astype(np.float64).mean(axis=0) - u.image[inside].mean(axis=0))
+              for p, u in ((blender_pale, blender), (raster_pale, raster))]
+    assert np.abs(change[1]).max() > 5.0, change  # the colour moved: green +9.0 levels
+    assert np.abs(change[0] - change[1]).max() < 0.25 * np.abs(change[1]).max(), change  # 0.3 levels apart measured
 
 
 @needs_bpy
