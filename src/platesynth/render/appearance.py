@@ -275,15 +275,13 @@ def stain_transmittance(density, stain, lysed):
     (0 or 1, a well's flag) takes the colour of what a lysed well keeps."""
     t = stain.translucency
     if lysed > 0.5:
-        return (
-            t + (1.0 - t) * math.exp(-density * stain.lysed_absorbance_r),
-            t + (1.0 - t) * math.exp(-density * stain.lysed_absorbance_g),
-            t + (1.0 - t) * math.exp(-density * stain.lysed_absorbance_b),
-        )
+        r, g, b = stain.lysed_absorbance_r, stain.lysed_absorbance_g, stain.lysed_absorbance_b
+    else:
+        r, g, b = stain.absorbance_r, stain.absorbance_g, stain.absorbance_b
     return (
-        t + (1.0 - t) * math.exp(-density * stain.absorbance_r),
-        t + (1.0 - t) * math.exp(-density * stain.absorbance_g),
-        t + (1.0 - t) * math.exp(-density * stain.absorbance_b),
+        t + (1.0 - t) * math.exp(-density * r),
+        t + (1.0 - t) * math.exp(-density * g),
+        t + (1.0 - t) * math.exp(-density * b),
     )
 
 
