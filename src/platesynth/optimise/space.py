@@ -64,6 +64,9 @@ AUTO = "auto"
 FIXED = "fixed"
 """The value of a space file's entry that keeps a parameter at the start's value (out of an ``all: auto`` space)."""
 
+ENTRY_FORMS = f"[low, high], {{range: [low, high], log: true}}, {AUTO} or {FIXED}"
+"""What a space file's entry may be (for error messages)."""
+
 ALL = "all"
 """A space file's key that starts from the whole default space (``all: auto``); its other entries then add
 parameters or replace their ranges."""
@@ -321,7 +324,7 @@ def _entry(dotted: str, entry: Any, start: SceneConfig, narrow: float, source: s
         unknown = sorted(set(entry) - {"range", "log"})
         if unknown or "range" not in entry:
             raise ParameterError(
-                f"{source}{dotted}: expected [low, high], {{range: [low, high], log: true}}, {AUTO} or {FIXED}, got {entry!r}"
+                f"{source}{dotted}: expected {ENTRY_FORMS}, got {entry!r}"
             )
         log = entry.get("log", False)
         if not isinstance(log, bool):
@@ -329,7 +332,7 @@ def _entry(dotted: str, entry: Any, start: SceneConfig, narrow: float, source: s
         entry = entry["range"]
     if not isinstance(entry, list) or len(entry) != 2:
         raise ParameterError(
-            f"{source}{dotted}: expected [low, high], {{range: [low, high], log: true}}, {AUTO} or {FIXED}, got {entry!r}"
+            f"{source}{dotted}: expected {ENTRY_FORMS}, got {entry!r}"
         )
     low, high = (_bound(dotted, value, source) for value in entry)
     if not low < high:
