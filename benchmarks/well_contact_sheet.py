@@ -6,7 +6,7 @@ their true well masks; both at the same crop size. The tiles are shuffled (seede
 is real) is written beside it as a text file, so that a person can look first and check after.
 
 Run: ``python benchmarks/well_contact_sheet.py --out sheet.png`` (``--preset high``, ``--wells 24`` of each kind,
-``--split fit|check|all``, ``--tile 160``).
+``--config look.yaml`` over it, ``--split fit|check|all``, ``--tile 160``).
 """
 
 from __future__ import annotations
@@ -26,6 +26,7 @@ def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--out", type=Path, required=True, help="PNG to write (the key goes to OUT.key.txt)")
     parser.add_argument("--preset", default="high")
+    parser.add_argument("--config", type=Path, help="a YAML scene configuration applied over the preset")
     parser.add_argument("--wells", type=int, default=24, help="wells of each kind")
     parser.add_argument("--split", choices=("all", "fit", "check"), default="fit")
     parser.add_argument("--tile", type=int, default=160, help="tile side in pixels")
@@ -53,7 +54,7 @@ def main(argv: list[str] | None = None) -> None:
         if len(real) >= args.wells:
             break
     synthetic = []
-    config = load_config(args.preset)
+    config = load_config(args.preset, path=args.config)
     seed = 0
     while len(synthetic) < args.wells:
         result = render_raster(sample_scene(config, 10_000 + seed), (1216, 944))
@@ -74,7 +75,8 @@ def main(argv: list[str] | None = None) -> None:
     args.out.parent.mkdir(parents=True, exist_ok=True)
     sheet.save(args.out)
     Path(f"{args.out}.key.txt").write_text("\n".join(key) + "\n")
-    print(f"{args.out}: {len(tiles)} wells ({args.split} photos, preset {args.preset}); key in {args.out}.key.txt")
+    look = args.preset + (f" with {args.config}" if args.config else "")
+    print(f"{args.out}: {len(tiles)} wells ({args.split} photos, preset {look}); key in {args.out}.key.txt")
 
 
 if __name__ == "__main__":

@@ -44,7 +44,7 @@ def test_presets_load_and_sample_json_roundtrip(preset):
 # here changes every dataset rendered from these presets). Update only for a deliberate change of the sampling.
 SCENE_SHA256_SEED3 = {
     "diverse": "a61fe810d3755b3f5328279506f93d3e4e2a2edd3783ccbff5376e9e2cde1488",
-    "high": "62e9545f25eb6eb69ac82d5011597a79a5cff4e8128d282cbd8133cc9cb326d0",
+    "high": "26a1f4e2f6d2b7573dec99d053fe2408caa2b5f2ac360f708886c85780513722",
     "lightbox12": "6c5f5bca6795338d93ad315b8382a01474d228d6b68b06f42812d76d9eebef0f",
     "low": "baaa9c194bf705a568b8910e4f23f23805e9fead4e7a51e2396df90bd254cdc5",
     "medium": "6da184a3e729e55ec430dfe1a5efd80e6cafe2763956af132fbe518410e5be8b",
@@ -319,9 +319,12 @@ def test_pale_plates_change_only_the_stain_colour():
         thin = sample_scene(load_config("high", overrides=pale), seed)
         assert 236 <= thin.stain.hue_deg <= 248 and 0.4 <= thin.stain.saturation <= 0.65
         assert 262 <= usual.stain.hue_deg <= 286 and usual.stain.saturation >= 0.9  # high's deep stain
-        # drawn from a stream of its own: every other parameter of the scene is the one drawn without it
+        # drawn from a stream of its own: every other parameter of the scene is the one drawn without it, but for
+        # the colour of high's lysed wells (stain.lysed_paleness), drawn from the same pale palette
+        assert 0.4 <= thin.stain.lysed_saturation <= 0.65
         same = usual.model_copy(update={"stain": usual.stain.model_copy(
-            update={"hue_deg": thin.stain.hue_deg, "saturation": thin.stain.saturation})})
+            update={"hue_deg": thin.stain.hue_deg, "saturation": thin.stain.saturation,
+                    "lysed_hue_deg": thin.stain.lysed_hue_deg, "lysed_saturation": thin.stain.lysed_saturation})})
         assert same == thin
     shares = [sample_scene(load_config("high", overrides={"stain.pale_plates": 0.3}), seed).stain.saturation < 0.9
               for seed in range(200)]
