@@ -5,14 +5,16 @@ Real wells are cropped from the shared 12-well photos with the fitted plate grid
 their true well masks; both at the same crop size. The tiles are shuffled (seeded) into one PNG; the key (which tile
 is real) is written beside it as a text file, so that a person can look first and check after.
 
-Run: ``python benchmarks/well_contact_sheet.py --out sheet.png`` (``--preset high``, ``--wells 24`` of each kind,
-``--config look.yaml`` over it, ``--split fit|check|all``, ``--tile 160``).
+Run: ``python benchmarks/well_contact_sheet.py --out sheet.png`` (``--preset high``, ``--config look.yaml`` over it,
+``--wells 24`` of each kind, ``--split fit|check|all``, ``--tile 160``). A judge's answers, one line per tile in the
+key's form (``row 0, column 3: real``), are scored against the key with ``--score ANSWERS.txt --out sheet.png``.
 """
 
 from __future__ import annotations
 
 import argparse
 import os
+import re
 from pathlib import Path
 
 from shared_split import in_split
@@ -21,8 +23,23 @@ ROOT = Path(__file__).resolve().parents[1]
 SHARED = Path(os.environ.get("PLATESYNTH_SHARED", ROOT.parent / "shared"))
 
 
+TILE_LINE = re.compile(r"row (\d+), column (\d+): (real|synthetic)")
+
+
+def score(key_path: Path, answers_path: Path) -> str:
+    """How many of a judge's answers match the key: in all, among the renders and among the photos."""
+    key = {(r, c): kind for r, c, kind in TILE_LINE.findall(key_path.read_text())}
+    answers = {(r, c): kind for r, c, kind in TILE_LINE.findall(answers_path.read_text())}
+    if set(answers) != set(key):
+        raise SystemExit(f"{answers_path}: {len(answers)} answers for the {len(key)} tiles of {key_path}")
+    right = {kind: sum(answers[t] == kind for t in key if key[t] == kind) for kind in ("synthetic", "real")}
+    total = {kind: sum(kind == k for k in key.values()) for kind in ("synthetic", "real")}
+    return (f"{sum(right.values())}/{len(key)} right: {right['synthetic']}/{total['synthetic']} renders found, "
+            f"{right['real']}/{total['real']} photos called real (chance: half)")
+
+
 def main(argv: list[str] | None = None) -> None:
-    """Write the sheet and its key."""
+    """Write the sheet and its key, or score a judge's answers against the key."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--out", type=Path, required=True, help="PNG to write (the key goes to OUT.key.txt)")
     parser.add_argument("--preset", default="high")
@@ -31,7 +48,11 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--split", choices=("all", "fit", "check"), default="fit")
     parser.add_argument("--tile", type=int, default=160, help="tile side in pixels")
     parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--score", type=Path, help="a judge's answers to score against OUT's key (writes nothing)")
     args = parser.parse_args(argv)
+    if args.score:
+        print(score(Path(f"{args.out}.key.txt"), args.score))
+        return
 
     import numpy as np
     from PIL import Image

@@ -1,0 +1,43 @@
+"""The contact sheet's scoring of a judge's answers (benchmarks/well_contact_sheet.py)."""
+
+from __future__ import annotations
+
+import importlib.util
+import sys
+from pathlib import Path
+
+import pytest
+
+BENCHMARKS = Path(__file__).resolve().parents[1] / "benchmarks"
+
+
+@pytest.fixture(scope="module")
+def sheet():
+    sys.path.insert(0, str(BENCHMARKS))  # the script imports its neighbour shared_split
+    try:
+        spec = importlib.util.spec_from_file_location("well_contact_sheet", BENCHMARKS / "well_contact_sheet.py")
+        module = importlib.util.module_from_spec(spec)
+        spec.loader.exec_module(module)
+        yield module
+    finally:
+        sys.path.remove(str(BENCHMARKS))
+
+
+def test_score_counts_renders_found_and_photos_kept(sheet, tmp_path):
+    kinds = ["real", "synthetic", "synthetic", "real", "synthetic", "real"]
+    key = tmp_path / "sheet.png.key.txt"
+    key.write_text("".join(f"row {i // 3}, column {i % 3}: {k}\n" for i, k in enumerate(kinds)))
+    answers = tmp_path / "answers.txt"
+    said = ["real", "synthetic", "real", "real", "synthetic", "synthetic"]  # one render missed, one photo doubted
+    answers.write_text("a judge's notes first\n" + "".join(
+        f"row {i // 3}, column {i % 3}: {k}\n" for i, k in enumerate(said)))
+    assert sheet.score(key, answers) == "4/6 right: 2/3 renders found, 2/3 photos called real (chance: half)"
+
+
+def test_score_refuses_answers_that_miss_tiles(sheet, tmp_path):
+    key = tmp_path / "sheet.png.key.txt"
+    key.write_text("row 0, column 0: real\nrow 0, column 1: synthetic\n")
+    answers = tmp_path / "answers.txt"
+    answers.write_text("row 0, column 0: real\n")
+    with pytest.raises(SystemExit, match="1 answers for the 2 tiles"):
+        sheet.score(key, answers)
