@@ -43,7 +43,7 @@ if [ "$AS_SHIPPED" = 1 ] && [ -z "$HIGH_CONFIG" ]; then
                   --set "stain.lysed_grain=[0.5,0.8]" --set "stain.lysed_paleness=0"
                   --set "artifacts.debris_width_factor=[0.2,0.7]" --set "artifacts.debris_length_mm={loguniform: [0.08, 2.5]}"
                   --set "artifacts.scratch_length_mm=[0.8,2.5]" --set "artifacts.scratch_width_mm=[0.2,0.4]"
-                  --set "artifacts.scratch_width_factor=[0.5,1.0]"
+                  --set "artifacts.scratch_width_factor=[0.5,1.0]" --set "artifacts.scratch_roughness=0"
                   --set "artifacts.pipette_bend={normal: [0.0, 0.35]}")
     SHIPPED_PLAQUES=(--set "plaques.centre_residual=[0.15,0.4]" --set "plaques.clearness=[0.95,1.0]")
 fi

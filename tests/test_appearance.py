@@ -9,6 +9,7 @@ from scipy import ndimage
 from platesynth.render import appearance
 from platesynth.render.textures import scene_textures
 from platesynth.scene import Plaque, PlaqueLook, load_config, sample_scene
+from platesynth.scene.concrete import Artifacts, Scratch
 
 TEXELS_PER_MM = 20.0
 
@@ -164,3 +165,39 @@ def test_the_raster_renderer_draws_the_pale_lysed_colour(base_scene):
     assert absorbed_red_over_green(paler.image) > absorbed_red_over_green(usual.image) + 0.1  # 1.14 -> 1.34 measured
     others = (usual.wells > 0) & ~inside  # the intact wells as they were (but for the post-processing's spread)
     np.testing.assert_allclose(usual.image[others].mean(axis=0), paler.image[others].mean(axis=0), atol=0.01)
+
+
+def scratch_widths(scene, roughness: float) -> np.ndarray:
+    """Width (mm) of the scraped band of one straight 4 mm scratch, along it in 0.05 mm steps."""
+    well = scene.wells[5]
+    x, y = well.center_mm
+    scratch = Scratch(well=well.id, points_mm=((x, y - 2.0), (x, y), (x, y + 2.0)), width_mm=0.6)
+    artifacts = Artifacts(scratches=(scratch,), scratch_roughness=roughness)
+    scene = scene.model_copy(update={"artifacts": artifacts, "plaques": ()})
+    grid = appearance.texel_grid(scene, TEXELS_PER_MM)
+    wells = appearance.wells_by_grid(scene)
+    centres = np.array([w.center_mm for w in wells])
+    scraped = appearance.draw_well_content(scene, grid, wells, centres, 99.0, scene_textures(scene)).scratched
+    rows = np.arange(int((y - 1.6) * TEXELS_PER_MM), int((y + 1.6) * TEXELS_PER_MM))
+    return (scraped[rows] / appearance.SCRATCH_CLEARING).sum(axis=1) / TEXELS_PER_MM
+
+
+def test_scratch_roughness_varies_the_width_along_the_scratch(base_scene):
+    scene, _ = base_scene
+    smooth = scratch_widths(scene, 0.0)
+    assert smooth == pytest.approx(0.6, abs=0.03)  # an even band of the scratch's width
+    ragged = scratch_widths(scene, 0.4)
+    # the two waves (weights 0.6 and 0.4) at 40 %: the width swings by up to +-0.24 mm about 0.6 mm, with its mean kept
+    assert ragged.min() < 0.5 and ragged.max() > 0.7 and ragged.max() < 0.6 * 1.4 + 0.05
+    assert ragged.mean() == pytest.approx(0.6, abs=0.06)
+
+
+def test_scratch_roughness_is_drawn_beside_the_other_parameters():
+    rough = load_config("high", overrides={"artifacts.scratch_roughness": [0.2, 0.5]})
+    smooth = load_config("high", overrides={"artifacts.scratch_roughness": 0.0})
+    for seed in range(4):
+        ragged, even = sample_scene(rough, seed), sample_scene(smooth, seed)
+        assert 0.2 <= ragged.artifacts.scratch_roughness <= 0.5 and even.artifacts.scratch_roughness == 0.0
+        same = even.model_copy(update={"artifacts": even.artifacts.model_copy(
+            update={"scratch_roughness": ragged.artifacts.scratch_roughness})})
+        assert same == ragged  # its own random stream: every other draw of the scene stays as it was

@@ -43,11 +43,11 @@ def test_presets_load_and_sample_json_roundtrip(preset):
 # sha256 of sample_scene(load_config(preset), 3).model_dump_json(): sampling must not change without intent (a change
 # here changes every dataset rendered from these presets). Update only for a deliberate change of the sampling.
 SCENE_SHA256_SEED3 = {
-    "diverse": "a61fe810d3755b3f5328279506f93d3e4e2a2edd3783ccbff5376e9e2cde1488",
-    "high": "26a1f4e2f6d2b7573dec99d053fe2408caa2b5f2ac360f708886c85780513722",
-    "lightbox12": "6c5f5bca6795338d93ad315b8382a01474d228d6b68b06f42812d76d9eebef0f",
-    "low": "baaa9c194bf705a568b8910e4f23f23805e9fead4e7a51e2396df90bd254cdc5",
-    "medium": "6da184a3e729e55ec430dfe1a5efd80e6cafe2763956af132fbe518410e5be8b",
+    "diverse": "5ced9dde613ff4c844adb9196ee8c5b3a164acd55986f390664e2e5e72434927",
+    "high": "749337948eb7c8b49306e1789dfbeb6bdd296956df55516bc324b9bc3e609869",
+    "lightbox12": "890cd1e88e14631b1ae5991de015e143533d6d946311ab2d74ff00950e6d9d2a",
+    "low": "22df891786510da7ba300e0abe550d4f9bac0400c6e138328181f4e0906d1a2d",
+    "medium": "e3c867c4a54489dd38630a5ba4e947c01cd6c0375430ed36bb0d7e313661f532",
 }
 
 

@@ -89,6 +89,9 @@ RESIDUAL_MEAN, RESIDUAL_SPREAD, RESIDUAL_MAX = 0.03, 0.03, 0.2
 # ---- marks
 SCRATCH_CLEARING = 0.95
 """A scratch scrapes off this share of the stain under it."""
+RAGGED_WAVES_MM = (1.7, 0.75)
+"""A ragged scratch's width varies along it as two waves of these lengths, weighted 0.6 and 0.4, each scratch at its
+own phase (``artifacts.scratch_roughness`` scales them)."""
 
 WELL_DTYPE = np.dtype(
     [
@@ -363,13 +366,18 @@ def draw_plaques(hinv, plaques, fourier, boxes, pixel_mm, from_below, top_radius
 def draw_capsules(hinv, segments, values, boxes, pixel_mm, out):
     """Max-combine anti-aliased capsules (thick line segments) into ``out``.
 
-    ``segments[s] = (x0, y0, x1, y1, half_width)`` in mm; ``values[s]`` the value at full coverage.
+    ``segments[s] = (x0, y0, x1, y1, half_width, along, roughness, phase)`` in mm: ``along`` is the distance of the
+    segment's start from its stroke's start, and the half-width varies along the stroke by the share ``roughness``
+    (:data:`RAGGED_WAVES_MM`, at ``phase`` radians); ``values[s]`` the value at full coverage.
     """
+    wave1, wave2 = 2.0 * math.pi / RAGGED_WAVES_MM[0], 2.0 * math.pi / RAGGED_WAVES_MM[1]
     for s in range(segments.shape[0]):
         ax, ay, bx, by, half = segments[s, 0], segments[s, 1], segments[s, 2], segments[s, 3], segments[s, 4]
+        along, roughness, phase = segments[s, 5], segments[s, 6], segments[s, 7]
         ex = bx - ax
         ey = by - ay
         length2 = ex * ex + ey * ey
+        length = math.sqrt(length2)
         value = values[s]
         y0, y1, x0, x1 = boxes[s, 0], boxes[s, 1], boxes[s, 2], boxes[s, 3]
         for y in range(y0, y1):
@@ -382,8 +390,12 @@ def draw_capsules(hinv, segments, values, boxes, pixel_mm, out):
                     t = min(max((px * ex + py * ey) / length2, 0.0), 1.0)
                 dx = px - t * ex
                 dy = py - t * ey
-                thin = min(1.0, 2.0 * half / pixel_mm)  # lines thinner than a pixel fade instead of vanishing
-                coverage = 0.5 - (math.sqrt(dx * dx + dy * dy) - max(half, 0.5 * pixel_mm)) / pixel_mm
+                width = half
+                if roughness > 0.0:
+                    at = along + t * length
+                    width *= 1.0 + roughness * (0.6 * math.sin(wave1 * at + phase) + 0.4 * math.sin(wave2 * at + 2.7 * phase))
+                thin = min(1.0, 2.0 * width / pixel_mm)  # lines thinner than a pixel fade instead of vanishing
+                coverage = 0.5 - (math.sqrt(dx * dx + dy * dy) - max(width, 0.5 * pixel_mm)) / pixel_mm
                 if coverage <= 0.0:
                     continue
                 coverage = min(coverage, 1.0) * thin * value
@@ -484,7 +496,13 @@ def draw_well_content(
                      textures.fine_tile, look.fray, look.centre_residual, look.halo, look.halo_width, look.rim,
                      content.clearing, content.rim, content.plaque_ids)
     art = scene.artifacts
-    segments = [(*a, *b, 0.5 * s.width_mm) for s in art.scratches for a, b in zip(s.points_mm[:-1], s.points_mm[1:])]
+    segments = []
+    for scratch in art.scratches:
+        points = np.asarray(scratch.points_mm, dtype=np.float64)
+        starts = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(points, axis=0), axis=1))])
+        phase = math.fmod(37.0 * points[0, 0] + 91.0 * points[0, 1], 2.0 * math.pi)  # each scratch its own
+        segments += [(*points[i], *points[i + 1], 0.5 * scratch.width_mm, starts[i], art.scratch_roughness, phase)
+                     for i in range(len(points) - 1)]
     if segments:
         _capsules(grid, np.array(segments), np.full(len(segments), SCRATCH_CLEARING), content.scratched)
     if art.debris:
@@ -493,7 +511,7 @@ def draw_well_content(
             half = 0.5 * max(d.length_mm - d.width_mm, 0.0)
             ca, sa = math.cos(math.radians(d.angle_deg)), math.sin(math.radians(d.angle_deg))
             cx, cy = d.center_mm
-            rows.append((cx - half * ca, cy - half * sa, cx + half * ca, cy + half * sa, 0.5 * d.width_mm))
+            rows.append((cx - half * ca, cy - half * sa, cx + half * ca, cy + half * sa, 0.5 * d.width_mm, 0.0, 0.0, 0.0))
             values.append(d.darkness)
         _capsules(grid, np.array(rows), np.array(values), content.specks)
     return content
@@ -502,7 +520,7 @@ def draw_well_content(
 def _capsules(grid: Sampling, segments: np.ndarray, values: np.ndarray, out: np.ndarray) -> None:
     pixel_mm = 1.0 / grid.px_per_mm
     ends = segments[:, :4].reshape(-1, 2, 2)
-    reach = segments[:, 4] + pixel_mm
+    reach = segments[:, 4] * (1.0 + segments[:, 6]) + pixel_mm
     lo = ends.min(axis=1) - reach[:, None]
     hi = ends.max(axis=1) + reach[:, None]
     corners = np.stack([lo, np.stack([hi[:, 0], lo[:, 1]], 1), hi, np.stack([lo[:, 0], hi[:, 1]], 1)], axis=1)

@@ -188,6 +188,7 @@ class Artifacts(_Concrete):
     """Everything on the plate that is not the assay itself."""
 
     scratches: tuple[Scratch, ...] = ()
+    scratch_roughness: float = Field(0.0, description="share by which the scratches' width varies along them")
     marker: tuple[MarkerStroke, ...] = ()
     blots: tuple[Blot, ...] = ()
     debris: tuple[Debris, ...] = ()
