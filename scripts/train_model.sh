@@ -42,6 +42,7 @@ if [ "$AS_SHIPPED" = 1 ] && [ -z "$HIGH_CONFIG" ]; then
                   --set "stain.lysed_residue=[0.02,0.05]" --set "stain.lysed_strands=[0.3,0.5]"
                   --set "stain.lysed_grain=[0.5,0.8]" --set "stain.lysed_paleness=0"
                   --set "artifacts.debris_width_factor=[0.2,0.7]" --set "artifacts.debris_length_mm={loguniform: [0.08, 2.5]}"
+                  --set "artifacts.debris_darkness=[0.5,2.5]"
                   --set "artifacts.scratch_length_mm=[0.8,2.5]" --set "artifacts.scratch_width_mm=[0.2,0.4]"
                   --set "artifacts.scratch_width_factor=[0.5,1.0]" --set "artifacts.scratch_roughness=0"
                   --set "artifacts.pipette_bend={normal: [0.0, 0.35]}")

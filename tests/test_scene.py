@@ -44,7 +44,7 @@ def test_presets_load_and_sample_json_roundtrip(preset):
 # here changes every dataset rendered from these presets). Update only for a deliberate change of the sampling.
 SCENE_SHA256_SEED3 = {
     "diverse": "5ced9dde613ff4c844adb9196ee8c5b3a164acd55986f390664e2e5e72434927",
-    "high": "749337948eb7c8b49306e1789dfbeb6bdd296956df55516bc324b9bc3e609869",
+    "high": "6d3e09e582e79a23e2b84cf6fafed9260f9e57bf220c2e623669049041feccd3",
     "lightbox12": "890cd1e88e14631b1ae5991de015e143533d6d946311ab2d74ff00950e6d9d2a",
     "low": "22df891786510da7ba300e0abe550d4f9bac0400c6e138328181f4e0906d1a2d",
     "medium": "e3c867c4a54489dd38630a5ba4e947c01cd6c0375430ed36bb0d7e313661f532",
