@@ -28,6 +28,9 @@ TILE_LINE = re.compile(r"row (\d+), column (\d+): (real|synthetic)")
 
 def score(key_path: Path, answers_path: Path) -> str:
     """How many of a judge's answers match the key: in all, among the renders and among the photos."""
+    for path in (key_path, answers_path):
+        if not path.is_file():
+            raise SystemExit(f"{path}: no such file (the key is written beside the sheet, as SHEET.png.key.txt)")
     key = {(r, c): kind for r, c, kind in TILE_LINE.findall(key_path.read_text())}
     answers = {(r, c): kind for r, c, kind in TILE_LINE.findall(answers_path.read_text())}
     if set(answers) != set(key):

@@ -32,8 +32,8 @@ render() {
 # The shipped model's images were rendered before high's stain hue narrowed to 262-286 deg, its specks thinned
 # (commits bb0f6fd, faf389a), and its pipette scratches, specks, plaques and lysed wells changed (eleventh
 # session). These settings, high's values of then, give the same configurations as then (compared with the
-# manifests of its data; the images and masks compared pixel for pixel). The plaques' two apply to the high part
-# only: crowded-soft.yaml sets its own. AS_SHIPPED=0, or a HIGH_CONFIG, renders today's high instead.
+# manifests of its data, and the first images and masks of each part pixel for pixel). The plaques' two apply to
+# the high part only: crowded-soft.yaml sets its own. AS_SHIPPED=0, or a HIGH_CONFIG, renders today's high instead.
 AS_SHIPPED=${AS_SHIPPED:-1}
 SHIPPED_LOOK=()
 SHIPPED_PLAQUES=()

@@ -41,3 +41,5 @@ def test_score_refuses_answers_that_miss_tiles(sheet, tmp_path):
     answers.write_text("row 0, column 0: real\n")
     with pytest.raises(SystemExit, match="1 answers for the 2 tiles"):
         sheet.score(key, answers)
+    with pytest.raises(SystemExit, match="other.png.key.txt: no such file"):
+        sheet.score(tmp_path / "other.png.key.txt", answers)
