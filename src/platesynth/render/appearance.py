@@ -89,9 +89,9 @@ RESIDUAL_MEAN, RESIDUAL_SPREAD, RESIDUAL_MAX = 0.03, 0.03, 0.2
 # ---- marks
 SCRATCH_CLEARING = 0.95
 """A scratch scrapes off this share of the stain under it."""
-RAGGED_WAVES_MM = (1.7, 0.75)
-"""A ragged scratch's width varies along it as two waves of these lengths, weighted 0.6 and 0.4, each scratch at its
-own phase (``artifacts.scratch_roughness`` scales them)."""
+RAGGED_WAVES = ((1.7, 0.6), (0.75, 0.4))
+"""A ragged scratch's width varies along it as the sum of two waves, (length in mm, weight) each, the second at 2.7
+times the first's phase; each scratch has its own phase, and ``artifacts.scratch_roughness`` scales the sum."""
 
 WELL_DTYPE = np.dtype(
     [
@@ -368,9 +368,10 @@ def draw_capsules(hinv, segments, values, boxes, pixel_mm, out):
 
     ``segments[s] = (x0, y0, x1, y1, half_width, along, roughness, phase)`` in mm: ``along`` is the distance of the
     segment's start from its stroke's start, and the half-width varies along the stroke by the share ``roughness``
-    (:data:`RAGGED_WAVES_MM`, at ``phase`` radians); ``values[s]`` the value at full coverage.
+    (:data:`RAGGED_WAVES`, at ``phase`` radians); ``values[s]`` the value at full coverage.
     """
-    wave1, wave2 = 2.0 * math.pi / RAGGED_WAVES_MM[0], 2.0 * math.pi / RAGGED_WAVES_MM[1]
+    (wavelength1, weight1), (wavelength2, weight2) = RAGGED_WAVES
+    wave1, wave2 = 2.0 * math.pi / wavelength1, 2.0 * math.pi / wavelength2
     for s in range(segments.shape[0]):
         ax, ay, bx, by, half = segments[s, 0], segments[s, 1], segments[s, 2], segments[s, 3], segments[s, 4]
         along, roughness, phase = segments[s, 5], segments[s, 6], segments[s, 7]
@@ -393,7 +394,8 @@ def draw_capsules(hinv, segments, values, boxes, pixel_mm, out):
                 width = half
                 if roughness > 0.0:
                     at = along + t * length
-                    width *= 1.0 + roughness * (0.6 * math.sin(wave1 * at + phase) + 0.4 * math.sin(wave2 * at + 2.7 * phase))
+                    width *= 1.0 + roughness * (weight1 * math.sin(wave1 * at + phase)
+                                                + weight2 * math.sin(wave2 * at + 2.7 * phase))
                 thin = min(1.0, 2.0 * width / pixel_mm)  # lines thinner than a pixel fade instead of vanishing
                 coverage = 0.5 - (math.sqrt(dx * dx + dy * dy) - max(width, 0.5 * pixel_mm)) / pixel_mm
                 if coverage <= 0.0:
