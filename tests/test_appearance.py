@@ -190,14 +190,3 @@ def test_scratch_roughness_varies_the_width_along_the_scratch(base_scene):
     # the two waves (weights 0.6 and 0.4) at 40 %: the width swings by up to +-0.24 mm about 0.6 mm, with its mean kept
     assert ragged.min() < 0.5 and ragged.max() > 0.7 and ragged.max() < 0.6 * 1.4 + 0.05
     assert ragged.mean() == pytest.approx(0.6, abs=0.06)
-
-
-def test_scratch_roughness_is_drawn_beside_the_other_parameters():
-    rough = load_config("high", overrides={"artifacts.scratch_roughness": [0.2, 0.5]})
-    smooth = load_config("high", overrides={"artifacts.scratch_roughness": 0.0})
-    for seed in range(4):
-        ragged, even = sample_scene(rough, seed), sample_scene(smooth, seed)
-        assert 0.2 <= ragged.artifacts.scratch_roughness <= 0.5 and even.artifacts.scratch_roughness == 0.0
-        same = even.model_copy(update={"artifacts": even.artifacts.model_copy(
-            update={"scratch_roughness": ragged.artifacts.scratch_roughness})})
-        assert same == ragged  # its own random stream: every other draw of the scene stays as it was

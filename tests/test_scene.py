@@ -377,3 +377,14 @@ def test_lysed_paleness_draws_the_remnants_colour_from_the_pale_palette_and_noth
         assert same == thin
     with pytest.raises(ValidationError, match="needs lysed_hue_deg"):
         Stain.model_validate({**usual.stain.model_dump(), "lysed_paleness": 0.5})
+
+
+def test_scratch_roughness_is_drawn_beside_the_other_parameters():
+    rough = load_config("high", overrides={"artifacts.scratch_roughness": [0.2, 0.5]})
+    smooth = load_config("high", overrides={"artifacts.scratch_roughness": 0.0})
+    for seed in range(4):
+        ragged, even = sample_scene(rough, seed), sample_scene(smooth, seed)
+        assert 0.2 <= ragged.artifacts.scratch_roughness <= 0.5 and even.artifacts.scratch_roughness == 0.0
+        same = even.model_copy(update={"artifacts": even.artifacts.model_copy(
+            update={"scratch_roughness": ragged.artifacts.scratch_roughness})})
+        assert same == ragged  # its own random stream: every other draw of the scene stays as it was
