@@ -7,9 +7,10 @@ grows with the number of images) and the brightness variability, all from :func:
 then the well-crop metrics of :mod:`platesynth.metrics.wells` (wells of the renders from their true masks, wells of
 the photos from a fitted 3x4 grid, crops of 128x128): ``fd_wells`` and ``kid_wells`` (AlexNet features of the
 crops), ``nn_acc_wells`` (leave-one-out accuracy of the nearest neighbour in that feature space at telling the
-renders' wells from the photos': 0.5 when they cannot be told apart; not measured for the real set), ``dnf_wells`` (|difference of the crops' mean Nf|), ``spec_wells`` (RMS difference of the mean log10
-power spectra of the monolayer, decades: the renders' plaques left out, the photos' kept as they have no masks) and
-``spec_w_plaques`` (the same with plaques kept in both sets, like for like).
+renders' wells from the photos': 0.5 when they cannot be told apart; not measured for the real set), ``dnf_wells``
+(|difference of the crops' mean Nf|), ``spec_wells`` (RMS difference of the mean log10 power spectra of the
+monolayer, decades: the renders' plaques left out, the photos' kept as they have no masks) and ``spec_w_plaques``
+(the same with plaques kept in both sets, like for like).
 
 The real set is ``../shared/data/plaque12/plates`` (39 crops of ~1200x950 px). The renders are made at 1216x944
 (the crops' typical size and aspect); ``--compare-size`` resizes both sets (Lanczos) before measuring, e.g. to

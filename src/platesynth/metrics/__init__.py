@@ -6,7 +6,8 @@ Pair metrics (one synthetic image against one real image): :func:`mean_squared_e
 
 Dataset metrics: the streaming :class:`PixelEntropy` and :class:`BrightnessVariability`
 (``update(image)`` / ``compute()`` / ``reset()``), :func:`size_matched_entropy`, :class:`FeatureStatistics` with
-:func:`frechet_distance_from_stats`, :func:`kernel_distance` and :func:`nearest_neighbour_accuracy`, and :func:`dataset_metrics` for a whole folder.
+:func:`frechet_distance_from_stats`, :func:`kernel_distance` and :func:`nearest_neighbour_accuracy`, and
+:func:`dataset_metrics` for a whole folder.
 
 Well-crop metrics (:mod:`platesynth.metrics.wells`): :func:`fit_plate_grid`, :func:`wells_from_mask`,
 :func:`crop_well`, :func:`radial_power_spectrum`, :func:`plaque_measurements`, the streaming :class:`WellCrops`,

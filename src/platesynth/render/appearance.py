@@ -513,7 +513,8 @@ def draw_well_content(
             half = 0.5 * max(d.length_mm - d.width_mm, 0.0)
             ca, sa = math.cos(math.radians(d.angle_deg)), math.sin(math.radians(d.angle_deg))
             cx, cy = d.center_mm
-            rows.append((cx - half * ca, cy - half * sa, cx + half * ca, cy + half * sa, 0.5 * d.width_mm, 0.0, 0.0, 0.0))
+            rows.append((cx - half * ca, cy - half * sa, cx + half * ca, cy + half * sa, 0.5 * d.width_mm,
+                         0.0, 0.0, 0.0))  # straight: no roughness
             values.append(d.darkness)
         _capsules(grid, np.array(rows), np.array(values), content.specks)
     return content
