@@ -1,7 +1,8 @@
 """Colour of the stain in the wells: a preset's renders against the shared real 12-well photos.
 
 For every well, the median hue, saturation and value (HSV) of the pixels within 0.6 of its radius from its centre
-(the stained monolayer, mostly; the median is robust to a few plaques). Real wells are found with the fitted plate
+(the stained monolayer, mostly; the median is robust to a few plaques), and the median of its green channel in
+8-bit levels (a saturated violet has almost none: how far a camera's tone curve crushes it). Real wells are found with the fitted plate
 grid (:func:`platesynth.metrics.fit_plate_grid`), synthetic ones with their true masks, raster renders at the
 photos' size. Prints the 10th, 50th and 90th percentiles per split and for the preset.
 
@@ -41,16 +42,18 @@ def main(argv: list[str] | None = None) -> None:
     from platesynth.scene import load_config, sample_scene
 
     def well_medians(image, discs) -> np.ndarray:
-        hsv = rgb2hsv(image)
+        """Per well: median hue, saturation, value (0..1) and green level (0..255) of its centre."""
+        hsv_green = np.concatenate([rgb2hsv(image), image[..., 1:2].astype(np.float64)], axis=2)
         yy, xx = np.mgrid[: image.shape[0], : image.shape[1]]
         return np.array([
-            np.median(hsv[(yy - d.cy) ** 2 + (xx - d.cx) ** 2 < (CENTRE_SHARE * d.radius) ** 2], axis=0) for d in discs
+            np.median(hsv_green[(yy - d.cy) ** 2 + (xx - d.cx) ** 2 < (CENTRE_SHARE * d.radius) ** 2], axis=0)
+            for d in discs
         ])
 
     def report(label: str, medians: np.ndarray) -> None:
-        hue, sat, val = (np.percentile(medians[:, k], [10, 50, 90]) for k in range(3))
+        hue, sat, val, green = (np.percentile(medians[:, k], [10, 50, 90]) for k in range(4))
         print(f"{label:24s} {len(medians):5d}  hue {np.round(hue * 360).astype(int)}  saturation {np.round(sat, 2)}  "
-              f"value {np.round(val, 2)}")
+              f"value {np.round(val, 2)}  green {np.round(green).astype(int)}")
 
     photos = list_images(SHARED / "data" / "plaque12" / "plates")
     if not photos:
