@@ -8,8 +8,11 @@ from typing import Any
 from platesynth import __version__
 from platesynth.errors import ParameterError
 from platesynth.limits import check_render
+from platesynth.render.kernel_cache import drop_stale_kernels
 from platesynth.render.result import RenderResult, WellInfo, check_size, plaque_counts
 from platesynth.scene.concrete import Scene
+
+drop_stale_kernels()  # before any kernel runs: numba's cache does not see edits of the modules a kernel inlines
 
 BACKENDS: dict[str, str] = {
     "raster": "platesynth.render.raster:render_raster",
