@@ -1,8 +1,9 @@
 """A contact sheet of real and synthetic well crops, shuffled, to judge by eye which is which.
 
-Real wells are cropped from the shared 12-well photos with the fitted plate grid
-(:func:`platesynth.metrics.fit_plate_grid`), synthetic ones from raster renders of a preset at the photos' size with
-their true well masks; both at the same crop size. The tiles are shuffled (seeded) into one PNG; the key (which tile
+Real wells are cropped from the shared 12-well photos, synthetic ones from raster renders of a preset at the photos'
+size, both the same way: with the plate grid fitted to the image (:func:`platesynth.metrics.fit_plate_grid`), at the
+same crop size. The same framing matters: the fitted grid puts the stain's edge at about 0.97 of a crop's half-side on
+photos and renders alike, the renders' true masks at 0.99, so the stain touched the tile's edge on renders only. The tiles are shuffled (seeded) into one PNG; the key (which tile
 is real) is written beside it as a text file, so that a person can look first and check after.
 
 Run: ``python benchmarks/well_contact_sheet.py --out sheet.png`` (``--preset high``, ``--config look.yaml`` over it,
@@ -61,7 +62,7 @@ def main(argv: list[str] | None = None) -> None:
     from PIL import Image
 
     from platesynth.io import list_images, read_image
-    from platesynth.metrics import crop_well, fit_plate_grid, wells_from_mask
+    from platesynth.metrics import crop_well, fit_plate_grid
     from platesynth.render.raster import render_raster
     from platesynth.scene import load_config, sample_scene
 
@@ -81,11 +82,12 @@ def main(argv: list[str] | None = None) -> None:
     config = load_config(args.preset, path=args.config)
     seed = 0
     while len(synthetic) < args.wells:
-        result = render_raster(sample_scene(config, 10_000 + seed), (1216, 944))
+        scene = sample_scene(config, 10_000 + seed)
         seed += 1
-        discs = wells_from_mask(result.wells)
+        image = render_raster(scene, (1216, 944)).image
+        discs = fit_plate_grid(image, (scene.plate.rows, scene.plate.cols))
         for index in rng.permutation(len(discs))[:3]:
-            synthetic.append(crop_well(result.image, discs[index], args.tile))
+            synthetic.append(crop_well(image, discs[index], args.tile))
     tiles = [(tile, "real") for tile in real[: args.wells]] + [(tile, "synthetic") for tile in synthetic[: args.wells]]
     order = rng.permutation(len(tiles))
     columns = 8
