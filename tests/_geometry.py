@@ -32,3 +32,19 @@ def distance_to_top_edges(scene: Scene, size: tuple[int, int]) -> tuple[np.ndarr
             to_edge = np.minimum(to_edge, np.abs(off_centre - edge))
         on_floor |= np.hypot(u - well.center_mm[0], v - well.center_mm[1]) < scene.plate.well_radius_mm - pixel_mm
     return to_edge, on_floor, pixel_mm
+
+
+def wall_band(scene: Scene, size: tuple[int, int], margin_px: float = 2.0) -> np.ndarray:
+    """Per pixel: whether it lies over a well's wall (between the floor's edge and the wall's outer foot), at least
+    ``margin_px`` pixels from both, where the walls' outlines and their blur do not reach (a negative margin widens
+    the band by as much)."""
+    view = camera_view(scene, *size)
+    wells, _, _ = wells_in_view(scene, view)
+    u, v = pixel_centres_mm(view)
+    margin = margin_px / view.px_per_mm
+    radius, wall = scene.plate.well_radius_mm, scene.plate.wall_mm
+    inside = np.zeros(u.shape, dtype=bool)
+    for well in wells:
+        off_centre = np.hypot(u - well.center_mm[0], v - well.center_mm[1])
+        inside |= (off_centre > radius + margin) & (off_centre < radius + wall - margin)
+    return inside

@@ -119,6 +119,30 @@ def test_lysed_density_sets_how_pale_a_lysed_well_is(base_scene):
     assert fine_detail(grainy) > 1.25 * fine_detail(smooth)  # 1.36 measured (strands and drying detail remain)
 
 
+def test_lysed_disc_gathers_the_remnant_in_the_middle_of_the_well(base_scene):
+    scene, well = base_scene
+    lysed = scene.model_copy(update={
+        "plaques": (), "wells": tuple(w.model_copy(update={"lysed": w.id == well.id}) for w in scene.wells)})
+    radius = scene.plate.well_radius_mm
+
+    def density(**stain) -> tuple[float, float]:
+        """Mean -log green transmittance within 0.3 radii of the centre, and between 0.8 and 0.95."""
+        variant = lysed.model_copy(update={"stain": lysed.stain.model_copy(update=stain)})
+        green = -np.log(appearance.floor_transmittance(variant, TEXELS_PER_MM)[..., 1].astype(np.float64))
+        rows, cols = np.indices(green.shape)
+        distance = np.hypot((rows + 0.5) / TEXELS_PER_MM - well.center_mm[1],
+                            (cols + 0.5) / TEXELS_PER_MM - well.center_mm[0])
+        return (float(green[distance < 0.3 * radius].mean()),
+                float(green[(distance > 0.8 * radius) & (distance < 0.95 * radius)].mean()))
+
+    cloud_centre, cloud_rim = density(lysed_disc=0.0)
+    disc_centre, disc_rim = density(lysed_disc=0.8, lysed_disc_radius=0.5)
+    assert disc_centre > 2.5 * cloud_centre  # the remnant gathers in the disc (3.5 times, measured)...
+    assert disc_rim < 0.4 * cloud_rim  # ...and thins out around it (0.22 times)
+    wide_centre, wide_rim = density(lysed_disc=0.8, lysed_disc_radius=0.9)
+    assert wide_rim > 5 * disc_rim  # a wider disc reaches toward the rim (13 times)
+
+
 def test_lysed_paleness_moves_a_lysed_wells_remnant_to_the_pale_colour(base_scene):
     scene, well = base_scene
     other = next(w for w in scene.wells if w.id != well.id and not w.emptied)

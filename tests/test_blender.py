@@ -13,7 +13,7 @@ import pytest
 from scipy import ndimage
 from typer.testing import CliRunner
 
-from _geometry import distance_to_top_edges, pixel_centres_mm
+from _geometry import distance_to_top_edges, pixel_centres_mm, wall_band
 from platesynth.errors import ParameterError
 from platesynth.render.blender import (
     BlenderScriptError,
@@ -343,3 +343,19 @@ def test_the_walls_top_edge_through_the_floor_is_the_raster_renderers(pool):
         darkening[name] = (before - after)[band].mean()
     assert darkening["raster"] > 0.5, darkening  # levels over the band; 0.92 measured, 0.85 in Blender
     assert abs(darkening["blender"] - darkening["raster"]) < 0.3 * darkening["raster"], darkening
+
+
+@needs_bpy
+def test_the_band_over_the_walls_is_the_raster_renderers(pool):
+    """``plate.wall_band`` darkens the plastic over the walls' thickness as much in Blender (the band's film) as in
+    the raster renderer."""
+    size = (480, 360)
+    settings = {"plaques.negative_plate": 1.0, "wells.emptied": 0.0, "post.jpeg": 0.0, "plate.top_edge_through_floor": 0.0}
+    bright, dark = (sample_scene(load_config("high", overrides=settings | {"plate.wall_band": share}), 6) for share in (0.04, -0.15))
+    band = wall_band(dark, size)
+    ratio = {}
+    for name, draw in (("raster", render_raster), ("blender", lambda s, z: render_blender(s, z, samples=SAMPLES, pool=pool))):
+        before, after = (draw(scene, size).image.astype(np.float64).mean(axis=2) for scene in (bright, dark))
+        ratio[name] = after[band].mean() / before[band].mean()
+    assert ratio["raster"] < 0.93, ratio  # (1 - 0.15) / 1.04 in linear light: 0.910 display-encoded, 0.911 in Blender
+    assert abs(ratio["blender"] - ratio["raster"]) < 0.02, ratio

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from _geometry import distance_to_top_edges
+from _geometry import distance_to_top_edges, wall_band
 from platesynth.errors import ParameterError, ShapeMismatchError
 from platesynth.render import postprocess as pp
 from platesynth.render import render
@@ -240,3 +240,22 @@ def test_the_walls_top_edge_shows_through_the_floor_as_much_as_asked():
     assert np.array_equal(before.image[away], after.image[away])
     off_floor = ~on_floor & (to_edge < 0.5 * pixel_mm) & (before.wells == 0)
     assert np.abs(darker[off_floor]).mean() < 0.5  # outside the floors the edge was drawn already
+
+
+def test_the_band_over_the_walls_is_as_bright_as_asked():
+    """``plate.wall_band`` brightens (or, negative, darkens) the plastic over each wall's thickness by that share
+    and changes nothing else: not the masks, not a pixel away from the walls."""
+    size = (640, 480)
+    settings = {"plaques.negative_plate": 1.0, "wells.emptied": 0.0, "post.jpeg": 0.0, "post.clarity": 0.0,
+                "post.bloom": 0.0, "post.noise": 0.0, "plate.top_edge_through_floor": 0.0}
+    bright, dark = (small_scene("high", 6, **settings, **{"plate.wall_band": share}) for share in (0.04, -0.15))
+    assert dark.plate_look.wall_band == -0.15 and bright.model_copy(
+        update={"plate_look": bright.plate_look.model_copy(update={"wall_band": -0.15})}) == dark
+    before, after = render(bright, size), render(dark, size)
+    assert np.array_equal(before.wells, after.wells)
+    band = wall_band(dark, size)
+    assert band.sum() > 500
+    ratio = after.image[band].astype(np.float64).mean() / before.image[band].astype(np.float64).mean()
+    assert 0.90 < ratio < 0.925  # (1 - 0.15) / 1.04 = 0.817 in linear light, 0.91 display-encoded; 0.913 measured
+    wide = ~wall_band(dark, size, margin_px=-6.0)  # beyond the reach of the blur and the sharpening
+    assert np.array_equal(before.image[wide], after.image[wide])

@@ -43,11 +43,11 @@ def test_presets_load_and_sample_json_roundtrip(preset):
 # sha256 of sample_scene(load_config(preset), 3).model_dump_json(): sampling must not change without intent (a change
 # here changes every dataset rendered from these presets). Update only for a deliberate change of the sampling.
 SCENE_SHA256_SEED3 = {
-    "diverse": "5ced9dde613ff4c844adb9196ee8c5b3a164acd55986f390664e2e5e72434927",
-    "high": "6d3e09e582e79a23e2b84cf6fafed9260f9e57bf220c2e623669049041feccd3",
-    "lightbox12": "890cd1e88e14631b1ae5991de015e143533d6d946311ab2d74ff00950e6d9d2a",
-    "low": "22df891786510da7ba300e0abe550d4f9bac0400c6e138328181f4e0906d1a2d",
-    "medium": "e3c867c4a54489dd38630a5ba4e947c01cd6c0375430ed36bb0d7e313661f532",
+    "diverse": "8f1e4ca68feb993d7134a2aef258c0e9c21f913b42092d41571d2e1194985e22",
+    "high": "4da64007551e582c61ee49d56e50d491c0798d7e08a65986a0d3157c4dbc78e8",
+    "lightbox12": "eb85478485a23764fb729bd949ae7e43c6540c039f60c60c51f314be24df4b59",
+    "low": "3385beb453029c4d576690b6ae31b55a9969929e6e3cd97d0cf6bb53d77ff9a8",
+    "medium": "5cfeced7f7178f8813a6a6139664d68c1fbd19983017e4fa91e2be525b87e8e4",
 }
 
 
@@ -388,3 +388,15 @@ def test_scratch_roughness_is_drawn_beside_the_other_parameters():
         same = even.model_copy(update={"artifacts": even.artifacts.model_copy(
             update={"scratch_roughness": ragged.artifacts.scratch_roughness})})
         assert same == ragged  # its own random stream: every other draw of the scene stays as it was
+
+
+def test_lysed_disc_is_drawn_beside_the_other_parameters():
+    disc = load_config("high", overrides={"stain.lysed_disc": [0.4, 0.8], "stain.lysed_disc_radius": [0.5, 0.6]})
+    cloud = load_config("high", overrides={"stain.lysed_disc": 0.0, "stain.lysed_disc_radius": 0.6})
+    for seed in range(4):
+        gathered, spread = sample_scene(disc, seed), sample_scene(cloud, seed)
+        assert 0.4 <= gathered.stain.lysed_disc <= 0.8 and 0.5 <= gathered.stain.lysed_disc_radius <= 0.6
+        assert spread.stain.lysed_disc == 0.0
+        shape = {name: getattr(gathered.stain, name) for name in ("lysed_disc", "lysed_disc_radius")}
+        same = spread.model_copy(update={"stain": spread.stain.model_copy(update=shape)})
+        assert same == gathered  # its own random stream: every other draw of the scene stays as it was

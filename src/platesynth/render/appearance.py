@@ -64,11 +64,17 @@ LYSED_CLOUD_SHIFT = 17.0
 """The cloud reads the unevenness grid this many cells to the right, so it does not echo the stain's blotches."""
 LYSED_STRAND_SHARE, LYSED_STRANDS = 0.6, 0.15
 """Remnant = ``stain.lysed_residue`` + cloud * (1 - share + share * strands) + LYSED_STRANDS * strands (clipped to
-[0, 1]), the strands scaled by ``stain.lysed_strands`` and the whole by the granular ``stain.lysed_grain``."""
+[0, 1]), the strands scaled by ``stain.lysed_strands`` and the whole by the granular ``stain.lysed_grain``; a share
+``stain.lysed_disc`` of the first two terms is gathered in a central disc."""
 LYSED_STRAND_FINE = 0.4
 """Strands vary along their length with the drying texture by this share."""
 LYSED_FLAKE_CELL_MM = 0.15
 """Cell of the flakes of a lysed well's remnant (the mottle tile read at this coarser cell)."""
+LYSED_DISC_EDGE_MM = 2.5
+"""The disc of ``stain.lysed_disc`` fades out over this width across its outline..."""
+LYSED_DISC_WOBBLE_MM, LYSED_DISC_FRAY_MM = 1.0, 0.4
+"""...which wobbles by this much per sd of the unevenness grid (read as the cloud reads it) and frays by this much
+per sd of the mottle tile (read at the flakes' cell)."""
 LYSED_RIM_LOSS, LYSED_RIM_MM = 0.7, 1.5
 """A lysed layer keeps ``stain.lysed_density`` of its density where the remnant is full, and loses this much more
 within this distance of the rim."""
@@ -128,6 +134,8 @@ STAIN_DTYPE = np.dtype(
         ("lysed_residue", np.float64),
         ("lysed_strands", np.float64),
         ("lysed_grain", np.float64),
+        ("lysed_disc", np.float64),
+        ("lysed_disc_radius", np.float64),
         ("absorbance_r", np.float64),  # -log of the stain's linear colour: the absorbance at density 1
         ("absorbance_g", np.float64),
         ("absorbance_b", np.float64),
@@ -180,7 +188,7 @@ def stain_table(scene: Scene, textures: SceneTextures) -> np.ndarray:
     table = np.zeros(1, dtype=STAIN_DTYPE)
     table[0] = (stain.unevenness, textures.low_cell_mm, stain.centre_elongation, stain.rim_clearing_mm,
                 stain.translucency, stain.rim_mottle, stain.rim_mottle_mm, stain.lysed_density, stain.lysed_residue, stain.lysed_strands,
-                stain.lysed_grain, *absorbance, *lysed_absorbance)
+                stain.lysed_grain, stain.lysed_disc, stain.lysed_disc_radius, *absorbance, *lysed_absorbance)
     return table
 
 
@@ -249,8 +257,15 @@ def monolayer_density(u, v, du, dv, dist, radius, well, stain, low_grid, fibre_g
             strands *= stain.lysed_strands
         cloud = LYSED_CLOUD_CENTRE * gradient + LYSED_CLOUD_NOISE * grid_sample(
             low_grid, u / low_cell + LYSED_CLOUD_SHIFT, v / low_cell)
-        remnant = clip01(stain.lysed_residue + cloud * (1.0 - LYSED_STRAND_SHARE + LYSED_STRAND_SHARE * strands)
-                         + LYSED_STRANDS * strands)
+        remnant = stain.lysed_residue + cloud * (1.0 - LYSED_STRAND_SHARE + LYSED_STRAND_SHARE * strands)
+        if stain.lysed_disc > 0.0:  # gathered in a disc around the centre, with a wobbling, frayed outline
+            outline = (stain.lysed_disc_radius * radius
+                       + LYSED_DISC_WOBBLE_MM * grid_sample(low_grid, u / low_cell + LYSED_CLOUD_SHIFT, v / low_cell)
+                       + LYSED_DISC_FRAY_MM * tile_sample(mottle_tile, (u + well.noise_y) / LYSED_FLAKE_CELL_MM,
+                                                          (v + well.noise_x) / LYSED_FLAKE_CELL_MM))
+            inside = clip01(0.5 + (outline - dist) / LYSED_DISC_EDGE_MM)
+            remnant = (1.0 - stain.lysed_disc) * remnant + stain.lysed_disc * inside
+        remnant = clip01(remnant + LYSED_STRANDS * strands)
         if stain.lysed_grain > 0.0:  # flakes of what is left (the mottle tile, read in another place)
             flakes = tile_sample(mottle_tile, (u + well.noise_x) / LYSED_FLAKE_CELL_MM, (v + well.noise_y) / LYSED_FLAKE_CELL_MM)
             remnant *= max(1.0 + stain.lysed_grain * flakes, 0.0)

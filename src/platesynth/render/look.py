@@ -11,8 +11,6 @@ parameter catalogue (:mod:`platesynth.scene`), not here.
 # ---- the plate's plastic
 FLOOR_TRANSMITTANCE = 0.96
 """Share of the light a well's thin bottom passes (the thick plastic between the wells passes ``plate_look.transmittance``)."""
-WALL_BAND_GAIN = 0.04
-"""How much brighter the plate looks over a well's wall, seen end-on, than over the deck around it."""
 OUTLINE_WIDTH_MM = 0.18
 """Width of the thin dark outlines of the walls' foot and top edges."""
 TOP_EDGE_OFFSET_MM = 0.3

@@ -33,7 +33,6 @@ from platesynth.render.look import (
     RULER_TICKS_MM,
     RULER_WIDTH_MM,
     SKIRT_DARKENING,
-    WALL_BAND_GAIN,
 )
 from platesynth.render.sampling import clip01, grid_sample, ring, to_plate
 
@@ -58,6 +57,7 @@ FRAME_DTYPE = np.dtype(
         ("top_edge_through_floor", np.float64),  # share of the top edge's outlines seen through a floor
         ("transmittance", np.float64),  # the plastic between the wells
         ("rim_darkness", np.float64),
+        ("wall_band", np.float64),  # relative brightness over the walls' thickness
         ("label_strength", np.float64),
         ("tint_r", np.float64),
         ("tint_g", np.float64),
@@ -145,7 +145,7 @@ def plastic(dist, top_dist, disc, signed, relief, f):
     skirt_shade = 1.0 - SKIRT_DARKENING * clip01((signed + f.skirt) / f.skirt)
     # the thick plastic between the wells passes less light than a well's thin bottom
     passing = (f.transmittance * (1.0 - disc) + FLOOR_TRANSMITTANCE * disc) * (
-        1.0 + WALL_BAND_GAIN * band - f.rim_darkness * min(outlines, 1.0))
+        1.0 + f.wall_band * band - f.rim_darkness * min(outlines, 1.0))
     return passing * ((1.0 - relief) * skirt_shade)
 
 

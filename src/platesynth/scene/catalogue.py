@@ -59,6 +59,8 @@ class PlateConfig(Section):
     top_edge_through_floor: Dist = number(0.0, 0.0, 1.0, "",
                                           "share of the walls' top-edge outlines seen through a well's floor from "
                                           "below (an arc across the monolayer where parallax puts the edge)")
+    wall_band: Dist = number(0.04, -0.3, 0.3, "", "how much brighter the plate looks over a well's wall, seen end-on, "
+                             "than over the plastic around it (negative: darker)")
 
 
 class CameraConfig(Section):
@@ -114,6 +116,10 @@ class StainConfig(Section):
     lysed_residue: Dist = number(0.04, 0.0, 1.0, "", "share of the layer a lysed well keeps everywhere (a pale film)")
     lysed_strands: Dist = number(1.0, 0.0, 3.0, "", "strength of the network of strands a lysed well keeps")
     lysed_grain: Dist = number(0.0, 0.0, 3.0, "", "granular texture of what a lysed well keeps")
+    lysed_disc: Dist = number(
+        0.0, 0.0, 1.0, "", "share of what a lysed well keeps that gathers in a denser central disc with a ragged "
+        "edge, the rest thinning out around it: 0 a cloud over the whole well")
+    lysed_disc_radius: Dist = number(0.6, 0.2, 0.9, "", "radius of that disc, share of the well's radius")
     lysed_paleness: Dist = number(
         0.0, 0.0, 1.0, "", "how far the colour of what a lysed well keeps moves from the plate's stain toward a pale, "
         "bluish one drawn from pale_hue_deg and pale_saturation (a thin film of damaged cells): 0 the plate's, 1 the pale")

@@ -60,6 +60,8 @@ class PlateLook(_Concrete):
     label_strength: float = Field(description="contrast of the embossed labels and rings, 0..1")
     top_edge_through_floor: float = Field(
         0.0, description="share of the walls' top-edge outlines seen through a well's floor from below, 0..1")
+    wall_band: float = Field(
+        0.04, description="relative brightness of the plate over a well's wall, seen end-on (negative: darker)")
 
 
 class Stain(_Concrete):
@@ -79,6 +81,8 @@ class Stain(_Concrete):
     lysed_residue: float = Field(0.04, description="share of the layer a lysed well keeps everywhere (a pale film)")
     lysed_strands: float = Field(1.0, description="strength of the network of strands a lysed well keeps")
     lysed_grain: float = Field(0.0, description="granular texture of what a lysed well keeps (relative, per sd)")
+    lysed_disc: float = Field(0.0, description="share of what a lysed well keeps gathered in a central disc, 0..1")
+    lysed_disc_radius: float = Field(0.6, description="radius of that disc, share of the well's radius")
     lysed_paleness: float = Field(
         0.0, description="how far the colour of what a lysed well keeps moves from the plate's toward the pale one, 0..1")
     lysed_hue_deg: float | None = Field(None, description="hue of the pale colour of what a lysed well keeps, degrees")

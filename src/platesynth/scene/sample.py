@@ -146,6 +146,7 @@ def sample_scene(config: SceneConfig, seed: int) -> Scene:
         rim_darkness=c.plate.draw("rim_darkness", rng),
         label_strength=c.plate.draw("label_strength", rng),
         top_edge_through_floor=c.plate.draw("top_edge_through_floor", rng),
+        wall_band=c.plate.draw("wall_band", scene_rng(seed, "plate_walls")),  # beside the main order
     )
 
     tilt = c.camera.draw("tilt_deg", rng)
@@ -192,6 +193,8 @@ def sample_scene(config: SceneConfig, seed: int) -> Scene:
     if lysed_paleness > 0.0:
         lysed_colour = {"lysed_paleness": lysed_paleness, "lysed_hue_deg": c.stain.draw("pale_hue_deg", lysed_palette),
                         "lysed_saturation": c.stain.draw("pale_saturation", lysed_palette)}
+    lysed_disc = scene_rng(seed, "lysed_disc")  # the disc of what lysed wells keep, likewise
+    lysed_shape = {name: c.stain.draw(name, lysed_disc) for name in ("lysed_disc", "lysed_disc_radius")}
     stain = Stain(
         hue_deg=hue_deg,
         saturation=saturation,
@@ -202,6 +205,7 @@ def sample_scene(config: SceneConfig, seed: int) -> Scene:
         rim_clearing_mm=c.stain.draw("rim_clearing_mm", rng),
         translucency=c.stain.draw("translucency", rng),
         **lysed_colour,
+        **lysed_shape,
     )
     density = c.stain.draw("density", rng)
     jitter = c.stain.draw("well_density_jitter", rng)

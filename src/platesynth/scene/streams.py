@@ -11,7 +11,8 @@ from __future__ import annotations
 import numpy as np
 
 STREAMS = ("well_offsets", "unevenness", "fibres", "desk", "fine", "residual", "post", "mottle", "stain_palette",
-           "lysed_palette", "scratch_edges")
+           "lysed_palette", "scratch_edges", "lysed_disc",
+           "plate_walls")
 """The random streams of a scene's seed, in the order they are spawned (append new ones at the end)."""
 
 

@@ -30,7 +30,6 @@ from platesynth.render.look import (
     OUTLINE_WIDTH_MM,
     RULER_WIDTH_MM,
     TOP_EDGE_OFFSET_MM,
-    WALL_BAND_GAIN,
 )
 
 PASS_PROPERTY = "platesynth_pass"
@@ -147,8 +146,8 @@ def _rims(
     wells: Sequence[Mapping[str, Any]],
     objects: dict[str, bpy.types.Object],
 ) -> None:
-    """What the raster renderer draws of the walls, as films (image pass only): a slightly brighter band over
-    the wall's thickness, and thin dark outlines at the wall's foot (radius, radius + wall) and top edge
+    """What the raster renderer draws of the walls, as films (image pass only): a band over the wall's thickness
+    (``plate_look.wall_band`` brighter), and thin dark outlines at the wall's foot (radius, radius + wall) and top edge
     (``TOP_EDGE_OFFSET_MM`` further out, + wall) at their heights. Seen from below, all but the plate look's
     ``top_edge_through_floor`` of the top edge's outlines is hidden where the ray has passed a well's floor (the
     raster renderer's ``behind_layer``)."""
@@ -164,7 +163,7 @@ def _rims(
     # just behind the floors' film, each ring at its own height: overlapping films must not coincide
     step = -float(view["toward_camera"]) * 0.05
     rings = [  # inner radius, outer radius, height, colour, share hidden behind the floors
-        (radius, radius + wall, step, 1.0 + WALL_BAND_GAIN, 0.0),
+        (radius, radius + wall, step, 1.0 + float(scene_data["plate_look"]["wall_band"]), 0.0),
         (radius - line / 2, radius + line / 2, 2 * step, 1.0 - foot_inner * darkness, 0.0),
         (radius + wall - line / 2, radius + wall + line / 2, 3 * step, 1.0 - foot_outer * darkness, 0.0),
         (top - line / 2, top + line / 2, depth - 0.05, 1.0 - top_inner * darkness, hidden_by_floor),
