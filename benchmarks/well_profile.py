@@ -1,0 +1,136 @@
+"""The wells' radial profile, inside and around: a preset's renders against the shared real 12-well photos.
+
+Inside: a plain well (no plaque; in the photos a well counted 0) is paler toward its rim, as the stain is denser at
+the centre. Its luminance is averaged over rings (medians), relative to the centre's (within 0.3 radii); the photos'
+and the renders' wells are compared ring by ring.
+
+Around: seen from below on a light box, each well is ringed by its wall: a band about a tenth of the well's radius wide with
+several thin grey outlines (the wall's foot and top edge). For every well, the luminance is sampled along rays on its
+four diagonals (where no label or neighbouring well lies), from 0.9 to 1.4 radii, and divided by the deck's level
+(the median from 1.3 to 1.4 radii). Prints, per virus of the photos and for the preset: the median profile's mean
+over the band (1.0 to 1.15 radii: below 1, the band is darker than the deck), its minimum, and the line contrast
+(the median over rays of the band's maximum minus minimum). Wells are found with the fitted plate grid
+(:func:`platesynth.metrics.fit_plate_grid`) in photos and renders alike; raster renders at the photos' size.
+
+Run: ``python benchmarks/well_profile.py`` (``--preset P``, ``--images N``, ``--set name=value`` overrides).
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+from pathlib import Path
+
+from shared_split import SPLITS
+
+ROOT = Path(__file__).resolve().parents[1]
+SHARED = Path(os.environ.get("PLATESYNTH_SHARED", ROOT.parent / "shared"))
+RADII = (0.9, 1.4, 0.01)
+"""Sampled distances from a well's centre, in radii (start, stop, step)."""
+DECK = (1.3, 1.4)
+BAND = (1.0, 1.15)
+DIAGONALS_DEG = (45, 135, 225, 315)
+SPREAD_DEG = 12
+"""Rays every 3 degrees within this angle of each diagonal."""
+RINGS = (0.0, 0.3, 0.5, 0.7, 0.8, 0.85, 0.9, 0.93, 0.96)
+"""Edges of the rings inside a plain well, in radii (the first ring is the centre the others are relative to)."""
+
+
+def main(argv: list[str] | None = None) -> None:
+    """Print the plain wells' rings and the walls' band level, darkest point and contrast, photos against renders."""
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--preset", default="high")
+    parser.add_argument("--images", type=int, default=8, help="synthetic images")
+    parser.add_argument("--seed", type=int, default=10_000)
+    parser.add_argument("--set", action="append", default=[], metavar="NAME=VALUE", help="override a parameter")
+    args = parser.parse_args(argv)
+
+    import csv
+
+    import numpy as np
+    import yaml
+    from scipy.ndimage import map_coordinates
+
+    from platesynth.io import list_images, read_image
+    from platesynth.metrics import fit_plate_grid
+    from platesynth.render.look import LUMINANCE
+    from platesynth.render.raster import render_raster
+    from platesynth.scene import load_config, sample_scene
+
+    radii = np.arange(*RADII)
+    deck, band = (radii >= DECK[0]) & (radii < DECK[1]), (radii >= BAND[0]) & (radii <= BAND[1])
+    angles = np.deg2rad([d + a for d in DIAGONALS_DEG for a in range(-SPREAD_DEG, SPREAD_DEG + 1, 3)])
+
+    def profiles(image: np.ndarray) -> np.ndarray:
+        """One row per ray: luminance at ``radii`` relative to the deck's."""
+        luminance = image.astype(np.float64) @ np.array(LUMINANCE)
+        rows = []
+        for disc in fit_plate_grid(image):
+            ys = disc.cy + np.sin(angles)[:, None] * radii * disc.radius
+            xs = disc.cx + np.cos(angles)[:, None] * radii * disc.radius
+            ray = map_coordinates(luminance, [ys.ravel(), xs.ravel()], order=1, mode="nearest").reshape(ys.shape)
+            rows.append(ray / np.median(ray[:, deck], axis=1, keepdims=True))
+        return np.concatenate(rows)
+
+    def rings(image: np.ndarray, discs) -> np.ndarray:
+        """One row per well of ``discs``: the median luminance of each ring of :data:`RINGS` over the centre's."""
+        luminance = image.astype(np.float64) @ np.array(LUMINANCE)
+        yy, xx = np.mgrid[: image.shape[0], : image.shape[1]]
+        rows = []
+        for disc in discs:
+            radius = np.hypot(yy - disc.cy, xx - disc.cx) / disc.radius
+            levels = [np.median(luminance[(radius >= a) & (radius < b)]) for a, b in zip(RINGS[:-1], RINGS[1:])]
+            rows.append(np.array(levels[1:]) / levels[0])
+        return np.array(rows)
+
+    def report_rings(label: str, wells: np.ndarray) -> None:
+        print(f"{label:24s} {len(wells):6d}  " + " ".join(f"{v:.3f}" for v in np.median(wells, axis=0)))
+
+    def report(label: str, rays: np.ndarray) -> None:
+        median = np.median(rays, axis=0)
+        contrast = np.median(rays[:, band].max(axis=1) - rays[:, band].min(axis=1))
+        print(f"{label:24s} {len(rays):6d}  band {median[band].mean():.3f}  darkest {median[band].min():.3f}  "
+              f"line contrast {contrast:.3f}")
+
+    photos = list_images(SHARED / "data" / "plaque12" / "plates")
+    if not photos:
+        raise SystemExit(f"no real photos under {SHARED}: set PLATESYNTH_SHARED to the shared material")
+    overrides = {name: yaml.safe_load(value) for name, value in (item.split("=", 1) for item in args.set)}
+    config = load_config(args.preset, overrides=overrides)
+    label = f"{args.preset}" + (" (with --set)" if overrides else "")
+    renders = [(scene, render_raster(scene, (1216, 944)).image)
+               for scene in (sample_scene(config, args.seed + index) for index in range(args.images))]
+    plain_counts = {}
+    with open(SHARED / "data" / "plaque12" / "counts.csv", newline="") as table:
+        for row in csv.DictReader(table):
+            if row["count"] == "0":
+                plain_counts.setdefault(row["image"], []).append(int(row["row"]) * 4 + int(row["col"]))
+
+    print(f"{'plain wells of':24s} {'wells':>6s}  luminance of the rings "
+          + ", ".join(f"{a}-{b}" for a, b in zip(RINGS[1:-1], RINGS[2:])) + " radii over the centre's")
+    for virus in SPLITS["all"]:
+        chosen = [p for p in photos if p.name.split("_")[0] == virus and p.name in plain_counts]
+        wells = []
+        for path in chosen:
+            image = read_image(path)
+            discs = fit_plate_grid(image)
+            wells.append(rings(image, [discs[index] for index in plain_counts[path.name]]))
+        report_rings(f"real, {virus}", np.concatenate(wells))
+    wells = []
+    for scene, image in renders:
+        discs = fit_plate_grid(image, (scene.plate.rows, scene.plate.cols))
+        with_plaques = {plaque.well for plaque in scene.plaques}
+        plain = [i for i, well in enumerate(scene.wells) if not (well.lysed or well.emptied or well.id in with_plaques)]
+        if plain:
+            wells.append(rings(image, [discs[i] for i in plain]))
+    report_rings(label, np.concatenate(wells))
+
+    print(f"\n{'walls of':24s} {'rays':>6s}  relative to the deck at {DECK[0]}-{DECK[1]} radii; band {BAND[0]}-{BAND[1]}")
+    for virus in SPLITS["all"]:
+        chosen = [p for p in photos if p.name.split("_")[0] == virus]
+        report(f"real, {virus}", np.concatenate([profiles(read_image(p)) for p in chosen]))
+    report(label, np.concatenate([profiles(image) for _, image in renders]))
+
+
+if __name__ == "__main__":
+    main()
