@@ -12,6 +12,8 @@ over the band (1.0 to 1.15 radii: below 1, the band is darker than the deck), it
 (the median over rays of the band's maximum minus minimum). Wells are found with the fitted plate grid
 (:func:`platesynth.metrics.fit_plate_grid`) in photos and renders alike; raster renders at the photos' size.
 
+And the deck's colour there (the light box seen through the plastic): red minus green and blue minus green, per image.
+
 Run: ``python benchmarks/well_profile.py`` (``--preset P``, ``--images N``, ``--set name=value`` overrides).
 """
 
@@ -86,6 +88,19 @@ def main(argv: list[str] | None = None) -> None:
     def report_rings(label: str, wells: np.ndarray) -> None:
         print(f"{label:24s} {len(wells):6d}  " + " ".join(f"{v:.3f}" for v in np.median(wells, axis=0)))
 
+    def deck_colour(image: np.ndarray) -> np.ndarray:
+        """The image's median (red - green, blue - green) over the deck along the wells' diagonals."""
+        points = [(disc.cy + np.sin(angles)[:, None] * radii[deck] * disc.radius,
+                   disc.cx + np.cos(angles)[:, None] * radii[deck] * disc.radius) for disc in fit_plate_grid(image)]
+        ys, xs = (np.concatenate([p[k].ravel() for p in points]) for k in (0, 1))
+        rgb = np.stack([map_coordinates(image[..., c].astype(np.float64), [ys, xs], order=1, mode="nearest")
+                        for c in range(3)], axis=1)
+        return np.median(rgb[:, [0, 2]] - rgb[:, [1]], axis=0)
+
+    def report_deck(label: str, offsets: np.ndarray) -> None:
+        red, blue = (np.percentile(offsets[:, k], [10, 50, 90]).round().astype(int) for k in (0, 1))
+        print(f"{label:24s} {len(offsets):6d}  red - green {red}  blue - green {blue}")
+
     def report(label: str, rays: np.ndarray) -> None:
         median = np.median(rays, axis=0)
         contrast = np.median(rays[:, band].max(axis=1) - rays[:, band].min(axis=1))
@@ -130,6 +145,13 @@ def main(argv: list[str] | None = None) -> None:
         chosen = [p for p in photos if p.name.split("_")[0] == virus]
         report(f"real, {virus}", np.concatenate([profiles(read_image(p)) for p in chosen]))
     report(label, np.concatenate([profiles(image) for _, image in renders]))
+
+    print(f"\n{'deck colour of':24s} {'images':>6s}  8-bit red minus green, blue minus green at {DECK[0]}-{DECK[1]} radii: "
+          "10th, 50th, 90th percentiles")
+    for virus in SPLITS["all"]:
+        chosen = [p for p in photos if p.name.split("_")[0] == virus]
+        report_deck(f"real, {virus}", np.array([deck_colour(read_image(p)) for p in chosen]))
+    report_deck(label, np.array([deck_colour(image) for _, image in renders]))
 
 
 if __name__ == "__main__":

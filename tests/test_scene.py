@@ -44,7 +44,7 @@ def test_presets_load_and_sample_json_roundtrip(preset):
 # here changes every dataset rendered from these presets). Update only for a deliberate change of the sampling.
 SCENE_SHA256_SEED3 = {
     "diverse": "8f1e4ca68feb993d7134a2aef258c0e9c21f913b42092d41571d2e1194985e22",
-    "high": "c4502163096504a825e37fe9ed31284b0280728b92c228369da29dee108190ae",
+    "high": "45b9c84977df758ce3d1d7d534de30fd1ed12c6a35490b6806684bdf717c9aab",
     "lightbox12": "eb85478485a23764fb729bd949ae7e43c6540c039f60c60c51f314be24df4b59",
     "low": "3385beb453029c4d576690b6ae31b55a9969929e6e3cd97d0cf6bb53d77ff9a8",
     "medium": "5cfeced7f7178f8813a6a6139664d68c1fbd19983017e4fa91e2be525b87e8e4",
