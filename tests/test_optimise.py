@@ -303,12 +303,25 @@ def test_plaque_sizes_are_measured_alike_in_renders_and_photos(reference, shippe
     assert not {"plaque_sizes", "plaques_found"} & set(compare(measured(None), photos))  # no plaque model, no terms
 
 
-def test_a_run_with_a_plaque_model_reports_plaque_sizes(reference, weights, shipped_model, tmp_path, one_torch_thread):
+def test_a_run_with_a_plaque_model_reports_plaque_sizes(reference, weights, shipped_model, tmp_path, monkeypatch,
+                                                        one_torch_thread):
+    from platesynth.optimise import objective
+
+    real = objective.plaque_area_fractions
+
+    def none_found_in_the_second_trial(images, model_dir):
+        # measured in this order: the photos' two halves, trial 0, trial 1, then the best configuration's evaluation
+        none_found_in_the_second_trial.calls += 1
+        found = real(images, model_dir)
+        return found[:0] if none_found_in_the_second_trial.calls == 4 else found
+
+    none_found_in_the_second_trial.calls = 0
+    monkeypatch.setattr(objective, "plaque_area_fractions", none_found_in_the_second_trial)
     result = optimise(reference, tmp_path / "plaques", preset="high", trials=2, plaque_model=shipped_model,
                       multi_objective=True, **{**TINY, "size": (304, 236)})
     start, other = _trials(tmp_path / "plaques")
     assert start["state"] == "complete" and 0 < start["plaque_sizes"] < 1 and 0 <= start["plaques_found"] < 2
-    # the second trial's three tiny renders hold no plaque the model finds: recorded as failed, not fatal
+    # a trial whose renders hold no plaque the model finds is recorded as failed, not fatal
     assert other["state"] == "fail" and "no plaques in one of the sets" in other["error"]
     assert {"plaque_sizes", "plaques_found"} <= set(result.report["objectives"])
     for part in ("fit", "check"):
