@@ -15,6 +15,7 @@ import argparse
 import os
 from pathlib import Path
 
+from preset_options import add_preset_options, preset_config
 from shared_split import in_split
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -26,20 +27,16 @@ CENTRE_SHARE = 0.6
 def main(argv: list[str] | None = None) -> None:
     """Print the percentiles of the wells' median hue, saturation and value."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--preset", default="high")
-    parser.add_argument("--images", type=int, default=12, help="synthetic images")
-    parser.add_argument("--seed", type=int, default=700)
-    parser.add_argument("--set", action="append", default=[], metavar="NAME=VALUE", help="override a parameter")
+    add_preset_options(parser, images=12, seed=700)
     args = parser.parse_args(argv)
 
     import numpy as np
-    import yaml
     from skimage.color import rgb2hsv
 
     from platesynth.io import list_images, read_image
     from platesynth.metrics import fit_plate_grid, wells_from_mask
     from platesynth.render.raster import render_raster
-    from platesynth.scene import load_config, sample_scene
+    from platesynth.scene import sample_scene
 
     def well_medians(image, discs) -> np.ndarray:
         """Per well: median hue, saturation, value (0..1) and green level (0..255) of its centre."""
@@ -63,13 +60,12 @@ def main(argv: list[str] | None = None) -> None:
         medians = [well_medians(image, fit_plate_grid(image))
                    for image in (read_image(p) for p in photos if in_split(p.name, split))]
         report(f"real, {split}", np.concatenate(medians))
-    overrides = {name: yaml.safe_load(value) for name, value in (item.split("=", 1) for item in args.set)}
-    config = load_config(args.preset, overrides=overrides)
+    config, label = preset_config(args)
     medians = []
     for index in range(args.images):
         result = render_raster(sample_scene(config, args.seed + index), (1216, 944))
         medians.append(well_medians(result.image, wells_from_mask(result.wells)))
-    report(f"{args.preset}" + (" (with --set)" if overrides else ""), np.concatenate(medians))
+    report(label, np.concatenate(medians))
 
 
 if __name__ == "__main__":

@@ -23,6 +23,7 @@ import argparse
 import os
 from pathlib import Path
 
+from preset_options import add_preset_options, preset_config
 from shared_split import SPLITS
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -41,23 +42,19 @@ RINGS = (0.0, 0.3, 0.5, 0.7, 0.8, 0.85, 0.9, 0.93, 0.96)
 def main(argv: list[str] | None = None) -> None:
     """Print the plain wells' rings and the walls' band level, darkest point and contrast, photos against renders."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--preset", default="high")
-    parser.add_argument("--images", type=int, default=8, help="synthetic images")
-    parser.add_argument("--seed", type=int, default=10_000)
-    parser.add_argument("--set", action="append", default=[], metavar="NAME=VALUE", help="override a parameter")
+    add_preset_options(parser, images=8, seed=10_000)
     args = parser.parse_args(argv)
 
     import csv
 
     import numpy as np
-    import yaml
     from scipy.ndimage import map_coordinates
 
     from platesynth.io import list_images, read_image
     from platesynth.metrics import fit_plate_grid
     from platesynth.render.look import LUMINANCE
     from platesynth.render.raster import render_raster
-    from platesynth.scene import load_config, sample_scene
+    from platesynth.scene import sample_scene
 
     radii = np.arange(*RADII)
     deck, band = (radii >= DECK[0]) & (radii < DECK[1]), (radii >= BAND[0]) & (radii <= BAND[1])
@@ -110,9 +107,7 @@ def main(argv: list[str] | None = None) -> None:
     photos = list_images(SHARED / "data" / "plaque12" / "plates")
     if not photos:
         raise SystemExit(f"no real photos under {SHARED}: set PLATESYNTH_SHARED to the shared material")
-    overrides = {name: yaml.safe_load(value) for name, value in (item.split("=", 1) for item in args.set)}
-    config = load_config(args.preset, overrides=overrides)
-    label = f"{args.preset}" + (" (with --set)" if overrides else "")
+    config, label = preset_config(args)
     renders = [(scene, render_raster(scene, (1216, 944)).image)
                for scene in (sample_scene(config, args.seed + index) for index in range(args.images))]
     plain_counts = {}
