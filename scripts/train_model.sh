@@ -31,9 +31,10 @@ render() {
 }
 # The shipped model's images were rendered before high's stain hue narrowed to 262-286 deg, its specks thinned
 # (commits bb0f6fd, faf389a), its pipette scratches, specks, plaques and lysed wells changed (eleventh
-# session), and its walls' outlines and its wells' centres darkened and its colour casts weakened (twelfth). These settings, high's values of then, give the same configurations as then (compared with the
-# manifests of its data, and the first images and masks of each part pixel for pixel). The plaques' two apply to
-# the high part only: crowded-soft.yaml sets its own. AS_SHIPPED=0, or a HIGH_CONFIG, renders today's high instead.
+# session), and its walls' outlines and its wells' centres darkened and its colour casts weakened (twelfth).
+# These settings, high's values of then, give the same configurations as then (compared with the manifests of its
+# data, and the first images and masks of each part pixel for pixel). The plaques' two apply to the high part
+# only: crowded-soft.yaml sets its own. AS_SHIPPED=0, or a HIGH_CONFIG, renders today's high instead.
 AS_SHIPPED=${AS_SHIPPED:-1}
 SHIPPED_LOOK=()
 SHIPPED_PLAQUES=()
