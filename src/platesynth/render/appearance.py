@@ -255,12 +255,11 @@ def monolayer_density(u, v, du, dv, dist, radius, well, stain, low_grid, fibre_g
         strands = (1.0 - min(abs(fibre), 1.0)) ** 2 * (1.0 - LYSED_STRAND_FINE + LYSED_STRAND_FINE * fine)
         if stain.lysed_strands != 1.0:
             strands *= stain.lysed_strands
-        cloud = LYSED_CLOUD_CENTRE * gradient + LYSED_CLOUD_NOISE * grid_sample(
-            low_grid, u / low_cell + LYSED_CLOUD_SHIFT, v / low_cell)
+        lumps = grid_sample(low_grid, u / low_cell + LYSED_CLOUD_SHIFT, v / low_cell)
+        cloud = LYSED_CLOUD_CENTRE * gradient + LYSED_CLOUD_NOISE * lumps
         remnant = stain.lysed_residue + cloud * (1.0 - LYSED_STRAND_SHARE + LYSED_STRAND_SHARE * strands)
         if stain.lysed_disc > 0.0:  # gathered in a disc around the centre, with a wobbling, frayed outline
-            outline = (stain.lysed_disc_radius * radius
-                       + LYSED_DISC_WOBBLE_MM * grid_sample(low_grid, u / low_cell + LYSED_CLOUD_SHIFT, v / low_cell)
+            outline = (stain.lysed_disc_radius * radius + LYSED_DISC_WOBBLE_MM * lumps
                        + LYSED_DISC_FRAY_MM * tile_sample(mottle_tile, (u + well.noise_y) / LYSED_FLAKE_CELL_MM,
                                                           (v + well.noise_x) / LYSED_FLAKE_CELL_MM))
             inside = clip01(0.5 + (outline - dist) / LYSED_DISC_EDGE_MM)
