@@ -4,12 +4,12 @@ Inside: a plain well (no plaque; in the photos a well counted 0) is paler toward
 the centre. Its luminance is averaged over rings (medians), relative to the centre's (within 0.3 radii); the photos'
 and the renders' wells are compared ring by ring.
 
-Around: seen from below on a light box, each well is ringed by its wall: a band about a tenth of the well's radius wide with
-several thin grey outlines (the wall's foot and top edge). For every well, the luminance is sampled along rays on its
-four diagonals (where no label or neighbouring well lies), from 0.9 to 1.4 radii, and divided by the deck's level
-(the median from 1.3 to 1.4 radii). Prints, per virus of the photos and for the preset: the median profile's mean
-over the band (1.0 to 1.15 radii: below 1, the band is darker than the deck), its minimum, and the line contrast
-(the median over rays of the band's maximum minus minimum). Wells are found with the fitted plate grid
+Around: seen from below on a light box, each well is ringed by its wall: a band about a tenth of the well's radius
+wide with several thin grey outlines (the wall's foot and top edge). For every well, the luminance is sampled along
+rays on its four diagonals (where no label or neighbouring well lies), from 0.9 to 1.4 radii, and divided by the
+deck's level (the median from 1.3 to 1.4 radii). Prints, per virus of the photos and for the preset: the median
+profile's mean over the band (1.0 to 1.15 radii: below 1, the band is darker than the deck), its minimum, and the
+line contrast (the median over rays of the band's maximum minus minimum). Wells are found with the fitted plate grid
 (:func:`platesynth.metrics.fit_plate_grid`) in photos and renders alike; raster renders at the photos' size.
 
 And the deck's colour there (the light box seen through the plastic): red minus green and blue minus green, per image.
@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import argparse
 import os
+from dataclasses import dataclass
 from pathlib import Path
 
 from preset_options import add_preset_options, preset_config
@@ -60,21 +61,29 @@ def main(argv: list[str] | None = None) -> None:
     deck, band = (radii >= DECK[0]) & (radii < DECK[1]), (radii >= BAND[0]) & (radii <= BAND[1])
     angles = np.deg2rad([d + a for d in DIAGONALS_DEG for a in range(-SPREAD_DEG, SPREAD_DEG + 1, 3)])
 
-    def profiles(image: np.ndarray) -> np.ndarray:
-        """One row per ray: luminance at ``radii`` relative to the deck's."""
-        luminance = image.astype(np.float64) @ np.array(LUMINANCE)
-        rows = []
-        for disc in fit_plate_grid(image):
-            ys = disc.cy + np.sin(angles)[:, None] * radii * disc.radius
-            xs = disc.cx + np.cos(angles)[:, None] * radii * disc.radius
-            ray = map_coordinates(luminance, [ys.ravel(), xs.ravel()], order=1, mode="nearest").reshape(ys.shape)
-            rows.append(ray / np.median(ray[:, deck], axis=1, keepdims=True))
-        return np.concatenate(rows)
+    def rays(discs) -> tuple[np.ndarray, np.ndarray]:
+        """Pixel rows and columns along the wells' diagonals at ``radii``: each ``(wells * angles, radii)``."""
+        ys = np.concatenate([disc.cy + np.sin(angles)[:, None] * radii * disc.radius for disc in discs])
+        xs = np.concatenate([disc.cx + np.cos(angles)[:, None] * radii * disc.radius for disc in discs])
+        return ys, xs
 
-    def rings(image: np.ndarray, discs) -> np.ndarray:
+    def sampled(channel: np.ndarray, ys: np.ndarray, xs: np.ndarray) -> np.ndarray:
+        return map_coordinates(channel, [ys.ravel(), xs.ravel()], order=1, mode="nearest").reshape(ys.shape)
+
+    def profiles(luminance: np.ndarray, discs) -> np.ndarray:
+        """One row per ray: luminance at ``radii`` relative to the deck's."""
+        ray = sampled(luminance, *rays(discs))
+        return ray / np.median(ray[:, deck], axis=1, keepdims=True)
+
+    def deck_colour(image: np.ndarray, discs) -> np.ndarray:
+        """The image's median (red - green, blue - green) over the deck along the wells' diagonals."""
+        ys, xs = (points[:, deck] for points in rays(discs))
+        rgb = np.stack([sampled(image[..., c].astype(np.float64), ys, xs).ravel() for c in range(3)], axis=1)
+        return np.median(rgb[:, [0, 2]] - rgb[:, [1]], axis=0)
+
+    def rings(luminance: np.ndarray, discs) -> np.ndarray:
         """One row per well of ``discs``: the median luminance of each ring of :data:`RINGS` over the centre's."""
-        luminance = image.astype(np.float64) @ np.array(LUMINANCE)
-        yy, xx = np.mgrid[: image.shape[0], : image.shape[1]]
+        yy, xx = np.mgrid[: luminance.shape[0], : luminance.shape[1]]
         rows = []
         for disc in discs:
             radius = np.hypot(yy - disc.cy, xx - disc.cx) / disc.radius
@@ -85,69 +94,65 @@ def main(argv: list[str] | None = None) -> None:
     def report_rings(label: str, wells: np.ndarray) -> None:
         print(f"{label:24s} {len(wells):6d}  " + " ".join(f"{v:.3f}" for v in np.median(wells, axis=0)))
 
-    def deck_colour(image: np.ndarray) -> np.ndarray:
-        """The image's median (red - green, blue - green) over the deck along the wells' diagonals."""
-        points = [(disc.cy + np.sin(angles)[:, None] * radii[deck] * disc.radius,
-                   disc.cx + np.cos(angles)[:, None] * radii[deck] * disc.radius) for disc in fit_plate_grid(image)]
-        ys, xs = (np.concatenate([p[k].ravel() for p in points]) for k in (0, 1))
-        rgb = np.stack([map_coordinates(image[..., c].astype(np.float64), [ys, xs], order=1, mode="nearest")
-                        for c in range(3)], axis=1)
-        return np.median(rgb[:, [0, 2]] - rgb[:, [1]], axis=0)
-
-    def report_deck(label: str, offsets: np.ndarray) -> None:
-        red, blue = (np.percentile(offsets[:, k], [10, 50, 90]).round().astype(int) for k in (0, 1))
-        print(f"{label:24s} {len(offsets):6d}  red - green {red}  blue - green {blue}")
-
     def report(label: str, rays: np.ndarray) -> None:
         median = np.median(rays, axis=0)
         contrast = np.median(rays[:, band].max(axis=1) - rays[:, band].min(axis=1))
         print(f"{label:24s} {len(rays):6d}  band {median[band].mean():.3f}  darkest {median[band].min():.3f}  "
               f"line contrast {contrast:.3f}")
 
-    photos = list_images(SHARED / "data" / "plaque12" / "plates")
-    if not photos:
+    def report_deck(label: str, offsets: np.ndarray) -> None:
+        red, blue = (np.percentile(offsets[:, k], [10, 50, 90]).round().astype(int) for k in (0, 1))
+        print(f"{label:24s} {len(offsets):6d}  red - green {red}  blue - green {blue}")
+
+    @dataclass
+    class Measured:
+        """An image read or rendered once, and its wells found once (the plate grid fitted to it)."""
+
+        image: np.ndarray
+        discs: list
+        plain: list  # indices of the plain wells among ``discs``
+
+        @property
+        def luminance(self) -> np.ndarray:
+            return self.image.astype(np.float64) @ np.array(LUMINANCE)
+
+    paths = list_images(SHARED / "data" / "plaque12" / "plates")
+    if not paths:
         raise SystemExit(f"no real photos under {SHARED}: set PLATESYNTH_SHARED to the shared material")
-    config, label = preset_config(args)
-    renders = [(scene, render_raster(scene, (1216, 944)).image)
-               for scene in (sample_scene(config, args.seed + index) for index in range(args.images))]
     plain_counts = {}
     with open(SHARED / "data" / "plaque12" / "counts.csv", newline="") as table:
         for row in csv.DictReader(table):
             if row["count"] == "0":
                 plain_counts.setdefault(row["image"], []).append(int(row["row"]) * 4 + int(row["col"]))
+    photos = {virus: [] for virus in SPLITS["all"]}
+    for path in paths:
+        image = read_image(path)
+        photos[path.name.split("_")[0]].append(
+            Measured(image, fit_plate_grid(image), plain_counts.get(path.name, [])))
+    config, label = preset_config(args)
+    renders = []
+    for scene in (sample_scene(config, args.seed + index) for index in range(args.images)):
+        image = render_raster(scene, (1216, 944)).image
+        with_plaques = {plaque.well for plaque in scene.plaques}
+        plain = [i for i, well in enumerate(scene.wells) if not (well.lysed or well.emptied or well.id in with_plaques)]
+        renders.append(Measured(image, fit_plate_grid(image, (scene.plate.rows, scene.plate.cols)), plain))
+    sets = [(f"real, {virus}", measured) for virus, measured in photos.items()] + [(label, renders)]
 
     print(f"{'plain wells of':24s} {'wells':>6s}  luminance of the rings "
           + ", ".join(f"{a}-{b}" for a, b in zip(RINGS[1:-1], RINGS[2:])) + " radii over the centre's")
-    for virus in SPLITS["all"]:
-        chosen = [p for p in photos if p.name.split("_")[0] == virus and p.name in plain_counts]
-        wells = []
-        for path in chosen:
-            image = read_image(path)
-            discs = fit_plate_grid(image)
-            wells.append(rings(image, [discs[index] for index in plain_counts[path.name]]))
-        report_rings(f"real, {virus}", np.concatenate(wells))
-    wells = []
-    for scene, image in renders:
-        discs = fit_plate_grid(image, (scene.plate.rows, scene.plate.cols))
-        with_plaques = {plaque.well for plaque in scene.plaques}
-        plain = [i for i, well in enumerate(scene.wells) if not (well.lysed or well.emptied or well.id in with_plaques)]
-        if plain:
-            wells.append(rings(image, [discs[i] for i in plain]))
-    report_rings(label, np.concatenate(wells))
+    for name, measured in sets:
+        plain = [rings(m.luminance, [m.discs[i] for i in m.plain]) for m in measured if m.plain]
+        report_rings(name, np.concatenate(plain))
 
-    print(f"\n{'walls of':24s} {'rays':>6s}  relative to the deck at {DECK[0]}-{DECK[1]} radii; band {BAND[0]}-{BAND[1]}")
-    for virus in SPLITS["all"]:
-        chosen = [p for p in photos if p.name.split("_")[0] == virus]
-        report(f"real, {virus}", np.concatenate([profiles(read_image(p)) for p in chosen]))
-    report(label, np.concatenate([profiles(image) for _, image in renders]))
+    print(f"\n{'walls of':24s} {'rays':>6s}  relative to the deck at {DECK[0]}-{DECK[1]} radii; "
+          f"band {BAND[0]}-{BAND[1]}")
+    for name, measured in sets:
+        report(name, np.concatenate([profiles(m.luminance, m.discs) for m in measured]))
 
-    print(f"\n{'deck colour of':24s} {'images':>6s}  8-bit red minus green, blue minus green at {DECK[0]}-{DECK[1]} radii: "
-          "10th, 50th, 90th percentiles")
-    for virus in SPLITS["all"]:
-        chosen = [p for p in photos if p.name.split("_")[0] == virus]
-        report_deck(f"real, {virus}", np.array([deck_colour(read_image(p)) for p in chosen]))
-    report_deck(label, np.array([deck_colour(image) for _, image in renders]))
-
+    print(f"\n{'deck colour of':24s} {'images':>6s}  8-bit red minus green, blue minus green at {DECK[0]}-{DECK[1]} "
+          "radii: 10th, 50th, 90th percentiles")
+    for name, measured in sets:
+        report_deck(name, np.array([deck_colour(m.image, m.discs) for m in measured]))
 
 if __name__ == "__main__":
     main()
