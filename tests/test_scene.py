@@ -379,24 +379,19 @@ def test_lysed_paleness_draws_the_remnants_colour_from_the_pale_palette_and_noth
         Stain.model_validate({**usual.stain.model_dump(), "lysed_paleness": 0.5})
 
 
-def test_scratch_roughness_is_drawn_beside_the_other_parameters():
-    rough = load_config("high", overrides={"artifacts.scratch_roughness": [0.2, 0.5]})
-    smooth = load_config("high", overrides={"artifacts.scratch_roughness": 0.0})
+@pytest.mark.parametrize("part, drawn, fixed", [
+    ("artifacts", {"artifacts.scratch_roughness": [0.2, 0.5]}, {"artifacts.scratch_roughness": 0.0}),
+    ("stain", {"stain.lysed_disc": [0.4, 0.8], "stain.lysed_disc_radius": [0.5, 0.6]},
+     {"stain.lysed_disc": 0.0, "stain.lysed_disc_radius": 0.6}),
+    ("plate_look", {"plate.wall_band": [-0.2, -0.05]}, {"plate.wall_band": 0.04}),
+])
+def test_a_parameter_added_later_is_drawn_beside_the_others(part, drawn, fixed):
     for seed in range(4):
-        ragged, even = sample_scene(rough, seed), sample_scene(smooth, seed)
-        assert 0.2 <= ragged.artifacts.scratch_roughness <= 0.5 and even.artifacts.scratch_roughness == 0.0
-        same = even.model_copy(update={"artifacts": even.artifacts.model_copy(
-            update={"scratch_roughness": ragged.artifacts.scratch_roughness})})
-        assert same == ragged  # its own random stream: every other draw of the scene stays as it was
-
-
-def test_lysed_disc_is_drawn_beside_the_other_parameters():
-    disc = load_config("high", overrides={"stain.lysed_disc": [0.4, 0.8], "stain.lysed_disc_radius": [0.5, 0.6]})
-    cloud = load_config("high", overrides={"stain.lysed_disc": 0.0, "stain.lysed_disc_radius": 0.6})
-    for seed in range(4):
-        gathered, spread = sample_scene(disc, seed), sample_scene(cloud, seed)
-        assert 0.4 <= gathered.stain.lysed_disc <= 0.8 and 0.5 <= gathered.stain.lysed_disc_radius <= 0.6
-        assert spread.stain.lysed_disc == 0.0
-        shape = {name: getattr(gathered.stain, name) for name in ("lysed_disc", "lysed_disc_radius")}
-        same = spread.model_copy(update={"stain": spread.stain.model_copy(update=shape)})
-        assert same == gathered  # its own random stream: every other draw of the scene stays as it was
+        varied, constant = (sample_scene(load_config("high", overrides=overrides), seed) for overrides in (drawn, fixed))
+        values = {name.split(".")[1]: getattr(getattr(varied, part), name.split(".")[1]) for name in drawn}
+        for name, (low, high) in drawn.items():
+            assert low <= values[name.split(".")[1]] <= high
+        for name, value in fixed.items():
+            assert getattr(getattr(constant, part), name.split(".")[1]) == value
+        same = constant.model_copy(update={part: getattr(constant, part).model_copy(update=values)})
+        assert same == varied  # its own random stream: every other draw of the scene stays as it was
