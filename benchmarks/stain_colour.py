@@ -2,9 +2,9 @@
 
 For every well, the median hue, saturation and value (HSV) of the pixels within 0.6 of its radius from its centre
 (the stained monolayer, mostly; the median is robust to a few plaques), and the median of its green channel in
-8-bit levels (a saturated violet has almost none: how far a camera's tone curve crushes it). Real wells are found with the fitted plate
-grid (:func:`platesynth.metrics.fit_plate_grid`), synthetic ones with their true masks, raster renders at the
-photos' size. Prints the 10th, 50th and 90th percentiles per split and for the preset.
+8-bit levels (a saturated violet has almost none: how far a camera's tone curve crushes it). Real wells are found
+with the fitted plate grid (:func:`platesynth.metrics.fit_plate_grid`), synthetic ones with their true masks, raster
+renders at the photos' size. Prints the 10th, 50th and 90th percentiles per split and for the preset.
 
 Run: ``python benchmarks/stain_colour.py`` (``--preset P``, ``--images N``, ``--set name=value`` overrides).
 """

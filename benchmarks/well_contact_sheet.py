@@ -3,8 +3,9 @@
 Real wells are cropped from the shared 12-well photos, synthetic ones from raster renders of a preset at the photos'
 size, both the same way: with the plate grid fitted to the image (:func:`platesynth.metrics.fit_plate_grid`), at the
 same crop size. The same framing matters: the fitted grid puts the stain's edge at about 0.97 of a crop's half-side on
-photos and renders alike, the renders' true masks at 0.99, so the stain touched the tile's edge on renders only. The tiles are shuffled (seeded) into one PNG; the key (which tile
-is real) is written beside it as a text file, so that a person can look first and check after.
+photos and renders alike, the renders' true masks at 0.99, so the stain touched the tile's edge on renders only. The
+tiles are shuffled (seeded) into one PNG; the key (which tile is real) is written beside it as a text file, so that a
+person can look first and check after.
 
 Run: ``python benchmarks/well_contact_sheet.py --out sheet.png`` (``--preset high``, ``--config look.yaml`` over it,
 ``--wells 24`` of each kind, ``--split fit|check|all``, ``--tile 160``). A judge's answers, one line per tile in the

@@ -17,7 +17,8 @@ def _package(tmp_path: Path) -> Path:
 
 def _compile(package: Path) -> list[Path]:
     """Stand-ins for the index and data files numba writes for a cached kernel."""
-    files = [package / "__pycache__" / "shading.shade-12.py311.nbi", package / "__pycache__" / "shading.shade-12.py311.1.nbc"]
+    cache = package / "__pycache__"
+    files = [cache / "shading.shade-12.py311.nbi", cache / "shading.shade-12.py311.1.nbc"]
     for path in files:
         path.write_bytes(b"compiled")
     return files

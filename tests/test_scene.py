@@ -387,7 +387,7 @@ def test_lysed_paleness_draws_the_remnants_colour_from_the_pale_palette_and_noth
 ])
 def test_a_parameter_added_later_is_drawn_beside_the_others(part, drawn, fixed):
     for seed in range(4):
-        varied, constant = (sample_scene(load_config("high", overrides=overrides), seed) for overrides in (drawn, fixed))
+        varied, constant = (sample_scene(load_config("high", overrides=o), seed) for o in (drawn, fixed))
         values = {name.split(".")[1]: getattr(getattr(varied, part), name.split(".")[1]) for name in drawn}
         for name, (low, high) in drawn.items():
             assert low <= values[name.split(".")[1]] <= high
