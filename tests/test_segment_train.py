@@ -189,6 +189,7 @@ def test_evaluate_masks_with_true_masks(rendered):
 def test_cli_train_predict_evaluate(rendered, tiny_model, tmp_path):
     config = load_model(tiny_model).config
     assert config.training["thresholds_tuned_on"] == 1
+    assert config.training["recipe"]["min_resolved_cells"] == 3.0  # the tuning's don't-care rule, kept with the model
     at_thresholds = config.training["validation_at_thresholds"]  # the held-out image's count error, kept
     assert 0 < at_thresholds["countable_wells"] <= 12 and at_thresholds["count_mae"] >= abs(at_thresholds["count_bias"])
 
@@ -256,6 +257,9 @@ def test_cli_bad_training_data(rendered, tmp_path):
     result = invoke("train", "--data", rendered, "--out", tmp_path / "m3", "--mix", "0.9,0.1")
     assert result.exit_code == 1 and "--mix has 2 fractions for 1 datasets" in result.output
 
+    result = invoke("train", "--data", rendered, "--out", tmp_path / "m4", "--min-resolved-cells", -1)
+    assert result.exit_code == 1 and "min_resolved_cells" in result.output and not (tmp_path / "m4").exists()
+
 
 def test_cli_bad_counts_and_images(rendered, tiny_model, tmp_path):
     rows = (rendered / "counts.csv").read_text().splitlines()
@@ -301,31 +305,39 @@ def test_choose_thresholds():
     assert choose_thresholds(scores) == {"wells": (0.5, 0.7), "plaques": (0.3, 0.5)}
 
 
-def test_threshold_scores_match_drawing_each_pair(rendered, tiny_model):
-    """The scores read off one drawing per NMS threshold equal those of drawing each pair's polygons alone."""
+@pytest.mark.parametrize("min_cells", [0.0, 1.0])
+def test_threshold_scores_match_drawing_each_pair(rendered, tiny_model, min_cells):
+    """The scores read off one drawing per NMS threshold equal those of drawing each pair's polygons alone, with
+    every rendered plaque scored (0) or the unresolvable ones left out with the predictions lying on them."""
     from platesynth.render.result import plaque_counts
     from platesynth.segment.countability import rendered_countable
     from platesynth.segment.matching import match_instances
     from platesynth.segment.predict import nms_polygons, polygons_to_mask, predict_maps
+    from platesynth.segment.resolvable import lying_on, resolvable_plaques
 
     model = load_model(tiny_model)
     items = list_items(rendered)[:2]
     # the barely trained model's probabilities lie in a narrow band: candidate thresholds inside it
     band = predict_maps(model, load_item(items[0])[0])[0]["plaques"].prob
     probs, nms = tuple(float(p) for p in np.percentile(band, [50, 90, 99])), (0.3, 0.5)
-    scores = threshold_scores(model, items, probs, nms)
+    scores = threshold_scores(model, items, probs, nms, min_resolved_cells=min_cells)
     mean_ap = np.zeros((3, 2))
     errors = [[[] for _ in nms] for _ in probs]
+    left_out = 0
     for item in items:
         image, wells, plaques = load_item(item)
+        resolved, unresolved = resolvable_plaques(plaques, 1.0, 2, min_cells)  # 128 px images: the working size
+        left_out += unresolved.size
         counted = [w for w, ok in rendered_countable(item).items() if ok]
         maps, working_shape = predict_maps(model, image)
         for i, prob in enumerate(probs):
             for j, nms_thresh in enumerate(nms):
                 predicted = polygons_to_mask(nms_polygons(maps["plaques"], prob, nms_thresh), working_shape, wells.shape)
-                mean_ap[i, j] += match_instances(plaques, predicted, 0.5).ap / len(items)
-                found, true = plaque_counts(wells, predicted, counted), plaque_counts(wells, plaques, counted)
+                predicted[lying_on(predicted, plaques, unresolved)[predicted]] = 0
+                mean_ap[i, j] += match_instances(resolved, predicted, 0.5).ap / len(items)
+                found, true = plaque_counts(wells, predicted, counted), plaque_counts(wells, resolved, counted)
                 errors[i][j] += [found[w] - true[w] for w in counted]
+    assert (left_out > 0) == (min_cells > 0)
     assert np.abs(errors).sum() > 0 and len(np.unique(np.array(errors).sum(axis=-1))) > 1  # the thresholds matter
     np.testing.assert_array_equal(scores.count_errors, np.array(errors, float))
     np.testing.assert_allclose(scores.mean_ap["plaques"], mean_ap, rtol=1e-12)

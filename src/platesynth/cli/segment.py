@@ -16,6 +16,7 @@ from platesynth.cli._common import console, print_json, print_table, progress_ba
 from platesynth.errors import ParameterError
 from platesynth.io import list_images
 from platesynth.outputs import TABLE_COLUMNS, claim_output
+from platesynth.segment.resolvable import MIN_RESOLVED_CELLS
 
 ModelDir = Annotated[Path, typer.Option("--model", "-m", help="Model directory (written by `platesynth train`).")]
 Json = Annotated[bool, typer.Option("--json", help="Print the result as JSON on stdout.")]
@@ -108,6 +109,14 @@ def train_command(
     tune: Annotated[
         bool, typer.Option("--tune/--no-tune", help="Tune probability/NMS thresholds on the validation images.")
     ] = True,
+    min_resolved_cells: Annotated[
+        float,
+        typer.Option(
+            "--min-resolved-cells",
+            help="Tuning leaves out rendered plaques narrower than this many grid cells, and predictions on them "
+            "(0: every plaque).",
+        ),
+    ] = MIN_RESOLVED_CELLS,
     model_config: Annotated[
         Path | None, typer.Option("--model-config", help="JSON ModelConfig (architecture, working size, grids).")
     ] = None,
@@ -140,6 +149,7 @@ def train_command(
             augment=augment,
             within_well_weight=within_well,
             tune_thresholds=tune,
+            min_resolved_cells=min_resolved_cells,
             num_workers=workers,
         )
     except ValidationError as exc:

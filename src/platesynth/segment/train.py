@@ -52,6 +52,7 @@ from platesynth.segment.model import (
     select_device,
 )
 from platesynth.segment.predict import nms_polygons, polygons_to_mask, predict_maps
+from platesynth.segment.resolvable import MIN_RESOLVED_CELLS, lying_on, resolvable_plaques
 
 CHECKPOINT_NAME = "checkpoint.pt"
 PROB_THRESHOLDS = (0.1, 0.15, 0.2, 0.25, 0.3, 0.4, 0.5, 0.6, 0.7)
@@ -78,6 +79,10 @@ class TrainConfig(BaseModel):
     background_reg: float = Field(1e-4, ge=0, description="pull of background distances to 0 (StarDist: 1e-4)")
     within_well_weight: float = Field(0.0, ge=0, description="weight of the penalty on plaques predicted outside wells")
     tune_thresholds: bool = Field(True, description="choose probability and NMS thresholds on the validation images")
+    min_resolved_cells: float = Field(
+        MIN_RESOLVED_CELLS, ge=0, description="threshold tuning leaves out rendered plaques narrower than this many "
+        "grid cells of the plaque branch, and the predictions lying on them (0: scores every plaque)"
+    )
     num_workers: int = Field(0, ge=0, description="data-loading processes (0: in the training process)")
 
     @field_validator("data")
@@ -286,8 +291,13 @@ def threshold_scores(
     prob_thresholds: Sequence[float] = PROB_THRESHOLDS,
     nms_thresholds: Sequence[float] = NMS_THRESHOLDS,
     tau: float = 0.5,
+    min_resolved_cells: float = MIN_RESOLVED_CELLS,
 ) -> ThresholdScores:
     """Score every candidate threshold pair on rendered items (:class:`ThresholdScores`).
+
+    The plaques too small for the model to resolve (:func:`~platesynth.segment.resolvable.resolvable_plaques`,
+    ``min_resolved_cells`` grid cells across at the working size; 0 scores every plaque) are "don't care": left out
+    of the true plaques and counts, and so is every predicted plaque lying mostly on one of them.
 
     NMS runs once per NMS threshold, at the lowest probability threshold, and its polygons are drawn once: a
     polygon is only ever suppressed by a more probable one and drawn under it, so the mask at a higher probability
@@ -303,14 +313,20 @@ def threshold_scores(
         image, wells, plaques = load_item(item)
         rendered = rendered_countable(item)
         counted = [int(i) for i in np.unique(wells) if i != 0 and rendered.get(int(i), True)]
-        true_counts = plaque_counts(wells, plaques, counted)
         maps, working_shape = predict_maps(model, image)
-        for name, truth in (("wells", wells), ("plaques", plaques)):
+        scale = working_shape[0] / plaques.shape[0]
+        grid = model.config.branches["plaques"].grid
+        resolved, unresolved = resolvable_plaques(plaques, scale, grid, min_resolved_cells)
+        true_counts = plaque_counts(wells, resolved, counted)
+        for name, truth in (("wells", wells), ("plaques", resolved)):
             for j, nms in enumerate(nms_thresholds):
                 kept = nms_polygons(maps[name], min(prob_thresholds), nms)
                 drawn = polygons_to_mask(kept, working_shape, truth.shape)
+                ids = np.arange(1, len(kept.scores) + 1)
+                if name == "plaques":
+                    ids[lying_on(drawn, plaques, unresolved, len(ids))[1:]] = 0
                 for i, prob in enumerate(prob_thresholds):
-                    erase = np.concatenate([[0], np.where(kept.scores > prob, np.arange(1, len(kept.scores) + 1), 0)])
+                    erase = np.concatenate([[0], np.where(kept.scores > prob, ids, 0)])
                     predicted = erase[drawn]
                     mean_ap[name][i, j] += match_instances(truth, predicted, tau).ap / len(items)
                     if name == "plaques":
@@ -500,7 +516,7 @@ def train(
     thresholds = model_config.thresholds
     at_thresholds = None
     if config.tune_thresholds and val_items:
-        scores = threshold_scores(best, val_items)
+        scores = threshold_scores(best, val_items, min_resolved_cells=config.min_resolved_cells)
         thresholds = choose_thresholds(scores)
         at_thresholds = _validation_at(scores, *thresholds["plaques"])
     for name, (prob, nms) in thresholds.items():
