@@ -26,14 +26,12 @@ ROOT = Path(__file__).resolve().parents[1]
 
 
 def reference_scores(model, items, prob_thresholds, nms_thresholds, tau=0.5):
-    """Mean AP per branch and count errors per pair, drawing each pair's polygons alone (the unresolvable plaques,
-    and the predictions lying on them, left out as in the tuning)."""
+    """Mean AP per branch and count errors per pair, drawing each pair's polygons alone."""
     from platesynth.data.layout import load_item
     from platesynth.render.result import plaque_counts
     from platesynth.segment.countability import rendered_countable
     from platesynth.segment.matching import match_instances
     from platesynth.segment.predict import nms_polygons, polygons_to_mask, predict_maps
-    from platesynth.segment.resolvable import lying_on, resolvable_plaques
 
     shape = (len(prob_thresholds), len(nms_thresholds))
     mean_ap = {"wells": np.zeros(shape), "plaques": np.zeros(shape)}
@@ -41,16 +39,12 @@ def reference_scores(model, items, prob_thresholds, nms_thresholds, tau=0.5):
     for item in items:
         image, wells, plaques = load_item(item)
         counted = [w for w, ok in rendered_countable(item).items() if ok]
+        true_counts = plaque_counts(wells, plaques, counted)
         maps, working_shape = predict_maps(model, image)
-        scale = working_shape[0] / plaques.shape[0]
-        resolved, unresolved = resolvable_plaques(plaques, scale, model.config.branches["plaques"].grid)
-        true_counts = plaque_counts(wells, resolved, counted)
-        for name, truth in (("wells", wells), ("plaques", resolved)):
+        for name, truth in (("wells", wells), ("plaques", plaques)):
             for i, prob in enumerate(prob_thresholds):
                 for j, nms in enumerate(nms_thresholds):
                     predicted = polygons_to_mask(nms_polygons(maps[name], prob, nms), working_shape, truth.shape)
-                    if name == "plaques":
-                        predicted[lying_on(predicted, plaques, unresolved)[predicted]] = 0
                     mean_ap[name][i, j] += match_instances(truth, predicted, tau).ap / len(items)
                     if name == "plaques":
                         found = plaque_counts(wells, predicted, counted)

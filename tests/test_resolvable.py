@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 from skimage.draw import disk
 
-from platesynth.segment.resolvable import MIN_RESOLVED_CELLS, lying_on, resolvable_plaques
+from platesynth.segment.resolvable import lying_on, resolvable_plaques
 
 
 def _plaques() -> np.ndarray:
@@ -19,13 +19,13 @@ def _plaques() -> np.ndarray:
 def test_plaques_narrower_than_the_grid_cells_are_unresolvable():
     plaques = _plaques()
     assert np.bincount(plaques.ravel()).tolist()[1:] == [9, 89]
-    resolved, unresolved = resolvable_plaques(plaques, scale=1.0, grid=2)  # 3 cells of 2 px: 6 px
-    assert MIN_RESOLVED_CELLS == 3.0 and unresolved.tolist() == [1]
+    resolved, unresolved = resolvable_plaques(plaques, scale=1.0, grid=2, min_cells=3)  # 3 cells of 2 px: 6 px
+    assert unresolved.tolist() == [1]
     np.testing.assert_array_equal(resolved, np.where(plaques == 2, 2, 0))
     # at half the working size, the larger one spans 5.3 px: unresolvable too
-    assert resolvable_plaques(plaques, scale=0.5, grid=2)[1].tolist() == [1, 2]
+    assert resolvable_plaques(plaques, scale=0.5, grid=2, min_cells=3)[1].tolist() == [1, 2]
     # a grid of 1 px resolves both, and 0 cells keep every plaque
-    assert resolvable_plaques(plaques, scale=1.0, grid=1)[1].size == 0
+    assert resolvable_plaques(plaques, scale=1.0, grid=1, min_cells=3)[1].size == 0
     kept, none = resolvable_plaques(plaques, scale=0.1, grid=2, min_cells=0)
     assert none.size == 0 and kept is plaques
 

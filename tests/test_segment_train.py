@@ -189,7 +189,7 @@ def test_evaluate_masks_with_true_masks(rendered):
 def test_cli_train_predict_evaluate(rendered, tiny_model, tmp_path):
     config = load_model(tiny_model).config
     assert config.training["thresholds_tuned_on"] == 1
-    assert config.training["recipe"]["min_resolved_cells"] == 3.0  # the tuning's don't-care rule, kept with the model
+    assert config.training["recipe"]["min_resolved_cells"] == 0.0  # every rendered plaque scored, kept with the model
     at_thresholds = config.training["validation_at_thresholds"]  # the held-out image's count error, kept
     assert 0 < at_thresholds["countable_wells"] <= 12 and at_thresholds["count_mae"] >= abs(at_thresholds["count_bias"])
 

@@ -16,7 +16,6 @@ from platesynth.cli._common import console, print_json, print_table, progress_ba
 from platesynth.errors import ParameterError
 from platesynth.io import list_images
 from platesynth.outputs import TABLE_COLUMNS, claim_output
-from platesynth.segment.resolvable import MIN_RESOLVED_CELLS
 
 ModelDir = Annotated[Path, typer.Option("--model", "-m", help="Model directory (written by `platesynth train`).")]
 Json = Annotated[bool, typer.Option("--json", help="Print the result as JSON on stdout.")]
@@ -116,7 +115,7 @@ def train_command(
             help="Tuning leaves out rendered plaques narrower than this many grid cells, and predictions on them "
             "(0: every plaque).",
         ),
-    ] = MIN_RESOLVED_CELLS,
+    ] = 0.0,
     model_config: Annotated[
         Path | None, typer.Option("--model-config", help="JSON ModelConfig (architecture, working size, grids).")
     ] = None,

@@ -6,22 +6,19 @@ too little on that grid for a probability and a polygon: trained models find alm
 "Thresholds against resolvable plaques"). Scored against them, every threshold candidate misses them alike, and the
 lowest candidates win by finding a few of them while adding false positives everywhere else.
 
-So threshold tuning scores such plaques as "don't care", as COCO's crowd regions and Cityscapes' ignore label are
-scored: they leave the truth, and a prediction lying mostly on one of them leaves the prediction, neither found nor
-false.
+Threshold tuning can score such plaques as "don't care", as COCO's crowd regions and Cityscapes' ignore label are
+scored (``platesynth train --min-resolved-cells``): they leave the truth, and a prediction lying mostly on one of them
+leaves the prediction, neither found nor false. It is off by default: on the real plates it helped one training of
+three and cost the other two, and the shipped model (docs/segmentation.md).
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-MIN_RESOLVED_CELLS = 3.0
-"""A plaque is resolvable when its equivalent diameter at the working size spans at least this many grid cells of
-the plaque branch (6 working pixels for a grid of 2)."""
-
 
 def resolvable_plaques(
-    plaques: np.ndarray, scale: float, grid: int, min_cells: float = MIN_RESOLVED_CELLS
+    plaques: np.ndarray, scale: float, grid: int, min_cells: float
 ) -> tuple[np.ndarray, np.ndarray]:
     """Split a plaque instance mask into the plaques a model can resolve and those it cannot.
 
@@ -34,7 +31,8 @@ def resolvable_plaques(
     grid : int
         Grid of the model's plaque branch, in working pixels.
     min_cells : float
-        Smallest equivalent diameter kept, in grid cells; 0 keeps every plaque.
+        Smallest equivalent diameter kept (the diameter of a disc of the plaque's area), in grid cells of the
+        plaque branch; 0 keeps every plaque.
 
     Returns
     -------

@@ -52,7 +52,7 @@ from platesynth.segment.model import (
     select_device,
 )
 from platesynth.segment.predict import nms_polygons, polygons_to_mask, predict_maps
-from platesynth.segment.resolvable import MIN_RESOLVED_CELLS, lying_on, resolvable_plaques
+from platesynth.segment.resolvable import lying_on, resolvable_plaques
 
 CHECKPOINT_NAME = "checkpoint.pt"
 PROB_THRESHOLDS = (0.1, 0.15, 0.2, 0.25, 0.3, 0.4, 0.5, 0.6, 0.7)
@@ -80,7 +80,7 @@ class TrainConfig(BaseModel):
     within_well_weight: float = Field(0.0, ge=0, description="weight of the penalty on plaques predicted outside wells")
     tune_thresholds: bool = Field(True, description="choose probability and NMS thresholds on the validation images")
     min_resolved_cells: float = Field(
-        MIN_RESOLVED_CELLS, ge=0, description="threshold tuning leaves out rendered plaques narrower than this many "
+        0.0, ge=0, description="threshold tuning leaves out rendered plaques narrower than this many "
         "grid cells of the plaque branch, and the predictions lying on them (0: scores every plaque)"
     )
     num_workers: int = Field(0, ge=0, description="data-loading processes (0: in the training process)")
@@ -291,13 +291,13 @@ def threshold_scores(
     prob_thresholds: Sequence[float] = PROB_THRESHOLDS,
     nms_thresholds: Sequence[float] = NMS_THRESHOLDS,
     tau: float = 0.5,
-    min_resolved_cells: float = MIN_RESOLVED_CELLS,
+    min_resolved_cells: float = 0.0,
 ) -> ThresholdScores:
     """Score every candidate threshold pair on rendered items (:class:`ThresholdScores`).
 
-    The plaques too small for the model to resolve (:func:`~platesynth.segment.resolvable.resolvable_plaques`,
-    ``min_resolved_cells`` grid cells across at the working size; 0 scores every plaque) are "don't care": left out
-    of the true plaques and counts, and so is every predicted plaque lying mostly on one of them.
+    With ``min_resolved_cells`` > 0, the plaques narrower than that many grid cells of the plaque branch at the
+    working size (:func:`~platesynth.segment.resolvable.resolvable_plaques`) are "don't care": left out of the true
+    plaques and counts, and so is every predicted plaque lying mostly on one of them. 0 scores every plaque.
 
     NMS runs once per NMS threshold, at the lowest probability threshold, and its polygons are drawn once: a
     polygon is only ever suppressed by a more probable one and drawn under it, so the mask at a higher probability
