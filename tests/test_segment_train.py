@@ -96,6 +96,10 @@ def test_training_resumes_to_the_same_weights(rendered, tmp_path):
 
     with pytest.raises(_Stop):
         train(config, tmp_path / "resumed", TINY, progress=stop_after_first_epoch)
+    # a training started before a setting existed resumes where that setting is at its default
+    saved_identity = json.loads((tmp_path / "resumed" / "train.json").read_text())
+    del saved_identity["train"]["min_resolved_cells"]
+    (tmp_path / "resumed" / "train.json").write_text(json.dumps(saved_identity))
     # the interrupted training is no model yet: loading it says where it stopped and how to resume
     assert json.loads((tmp_path / "resumed" / "config.json").read_text())["complete"] is False
     with pytest.raises(UnfinishedModelError, match=r"unfinished training \(stopped during epoch 2 of 2\); resume it"):

@@ -188,6 +188,9 @@ def _check_model_dir(model_dir: Path, identity: dict[str, Any], overwrite: bool)
         if not overwrite:
             raise DatasetError(f"{saved_path}: unreadable ({exc.__class__.__name__}); use --overwrite to replace it") from None
         saved = None
+    if isinstance(saved, dict) and isinstance(saved.get("train"), dict):  # settings added since, at their defaults
+        later = {name: field.default for name, field in TrainConfig.model_fields.items() if name not in saved["train"]}
+        saved["train"] = {**later, **saved["train"]}
     if saved == identity and (model_dir / CHECKPOINT_NAME).is_file():
         return True
     if saved is not None and saved != identity and not overwrite:
