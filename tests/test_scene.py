@@ -43,7 +43,7 @@ def test_presets_load_and_sample_json_roundtrip(preset):
 # sha256 of sample_scene(load_config(preset), 3).model_dump_json(): sampling must not change without intent (a change
 # here changes every dataset rendered from these presets). Update only for a deliberate change of the sampling.
 SCENE_SHA256_SEED3 = {
-    "diverse": "8f1e4ca68feb993d7134a2aef258c0e9c21f913b42092d41571d2e1194985e22",
+    "diverse": "fb88819604698f80c0b19ddd4ff7888165f8ef326ecb0fa7e7f4fb4628ef3660",
     "high": "45b9c84977df758ce3d1d7d534de30fd1ed12c6a35490b6806684bdf717c9aab",
     "lightbox12": "eb85478485a23764fb729bd949ae7e43c6540c039f60c60c51f314be24df4b59",
     "low": "3385beb453029c4d576690b6ae31b55a9969929e6e3cd97d0cf6bb53d77ff9a8",
