@@ -44,10 +44,10 @@ def test_presets_load_and_sample_json_roundtrip(preset):
 # here changes every dataset rendered from these presets). Update only for a deliberate change of the sampling.
 SCENE_SHA256_SEED3 = {
     "diverse": "fb88819604698f80c0b19ddd4ff7888165f8ef326ecb0fa7e7f4fb4628ef3660",
-    "high": "45b9c84977df758ce3d1d7d534de30fd1ed12c6a35490b6806684bdf717c9aab",
-    "lightbox12": "eb85478485a23764fb729bd949ae7e43c6540c039f60c60c51f314be24df4b59",
+    "high": "8b861f060d3657ef09a2d5ca7e7410312d499fc779088943daaf3e017aea2225",
+    "lightbox12": "4ddb799b05eecb10025b876f444b94b0f54a594cb9681e3dbfd6acb6f0996c78",
     "low": "3385beb453029c4d576690b6ae31b55a9969929e6e3cd97d0cf6bb53d77ff9a8",
-    "medium": "5cfeced7f7178f8813a6a6139664d68c1fbd19983017e4fa91e2be525b87e8e4",
+    "medium": "87efb04a55a83683b1e75a60e89b05486316e495584d83426a8387ed6cbf9e18",
 }
 
 
