@@ -21,7 +21,7 @@ fi
 if ! command -v chromium >/dev/null 2>&1 && ! command -v chromium-browser >/dev/null 2>&1; then
     if command -v apt-get >/dev/null 2>&1; then
         echo "installing chromium for the report tests"
-        { $SUDO apt-get update -qq && $SUDO DEBIAN_FRONTEND=noninteractive apt-get install -y -qq chromium >/dev/null; } ||
+        { $SUDO apt-get update -qq && $SUDO env DEBIAN_FRONTEND=noninteractive apt-get install -y -qq chromium >/dev/null; } ||
             echo "warning: could not install chromium; tests/test_report.py will skip opening the pages" >&2
     else
         echo "warning: chromium not found; tests/test_report.py will skip opening the pages" >&2

@@ -326,7 +326,7 @@ def threshold_scores(
                 kept = nms_polygons(maps[name], min(prob_thresholds), nms)
                 drawn = polygons_to_mask(kept, working_shape, truth.shape)
                 ids = np.arange(1, len(kept.scores) + 1)
-                if name == "plaques":
+                if name == "plaques" and unresolved.size:
                     ids[lying_on(drawn, plaques, unresolved, len(ids))[1:]] = 0
                 for i, prob in enumerate(prob_thresholds):
                     erase = np.concatenate([[0], np.where(kept.scores > prob, ids, 0)])
