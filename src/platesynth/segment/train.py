@@ -312,13 +312,13 @@ def threshold_scores(
     shape = (len(prob_thresholds), len(nms_thresholds))
     mean_ap = {name: np.zeros(shape) for name in BRANCHES}
     errors: list[list[list[int]]] = [[[] for _ in nms_thresholds] for _ in prob_thresholds]
+    grid = model.config.branches["plaques"].grid
     for item in items:
         image, wells, plaques = load_item(item)
         rendered = rendered_countable(item)
         counted = [int(i) for i in np.unique(wells) if i != 0 and rendered.get(int(i), True)]
         maps, working_shape = predict_maps(model, image)
-        scale = working_shape[0] / plaques.shape[0]
-        grid = model.config.branches["plaques"].grid
+        scale = working_scale(plaques.shape, model.config.input_long_side)  # as predict_maps resizes the image
         resolved, unresolved = resolvable_plaques(plaques, scale, grid, min_resolved_cells)
         true_counts = plaque_counts(wells, resolved, counted)
         for name, truth in (("wells", wells), ("plaques", resolved)):
