@@ -120,6 +120,13 @@ def split_items(items: Sequence[DatasetItem], val_fraction: float, seed: int) ->
     return [it for i, it in enumerate(items) if i not in val], [it for i, it in enumerate(items) if i in val]
 
 
+def split_sources(
+    datasets: Sequence[Sequence[DatasetItem]], val_fraction: float, seed: int
+) -> list[tuple[list[DatasetItem], list[DatasetItem]]]:
+    """Every dataset split by :func:`split_items`, the ``k``-th one with the seed ``seed + k``."""
+    return [split_items(items, val_fraction, seed + number) for number, items in enumerate(datasets)]
+
+
 def validation_items(val_sets: Sequence[Sequence[DatasetItem]], limit: int) -> list[DatasetItem]:
     """At most ``limit`` held-out items, taken from each dataset's in turn, so that every source is validated on
     (and the thresholds tuned on it) however small ``limit`` is."""
@@ -435,7 +442,7 @@ def train(
     torch_device = select_device(device)  # validated before anything is written
     datasets = [list_items(directory) for directory in config.data]
     check_training(model_config, config.patch, config.batch_size, _largest_image(datasets), config.num_workers)
-    splits = [split_items(items, config.val_fraction, config.seed + number) for number, items in enumerate(datasets)]
+    splits = split_sources(datasets, config.val_fraction, config.seed)
     train_sets, val_sets = [s[0] for s in splits], [s[1] for s in splits]
     train_items = [item for items in train_sets for item in items]
     sources = [number for number, items in enumerate(train_sets) for _ in items]
