@@ -143,6 +143,87 @@ def test_lysed_disc_gathers_the_remnant_in_the_middle_of_the_well(base_scene):
     assert wide_rim > 5 * disc_rim  # a wider disc reaches toward the rim (13 times)
 
 
+def test_lysed_clumps_keep_islands_of_intact_stain_on_about_their_share_of_the_well(base_scene):
+    scene, well = base_scene
+    lysed = scene.model_copy(update={
+        "plaques": (), "wells": tuple(w.model_copy(update={"lysed": w.id == well.id}) for w in scene.wells)})
+    intact_floor = appearance.floor_transmittance(scene.model_copy(update={"plaques": ()}), TEXELS_PER_MM)
+    rows, cols = np.indices(intact_floor.shape[:2])
+    inside = np.hypot((rows + 0.5) / TEXELS_PER_MM - well.center_mm[1],
+                      (cols + 0.5) / TEXELS_PER_MM - well.center_mm[0]) < 0.9 * scene.plate.well_radius_mm
+    intact = -np.log(intact_floor[..., 1][inside].astype(np.float64))
+
+    def green_density(clumps: float) -> np.ndarray:
+        variant = lysed.model_copy(update={"stain": lysed.stain.model_copy(update={"lysed_clumps": clumps})})
+        return -np.log(appearance.floor_transmittance(variant, TEXELS_PER_MM)[..., 1][inside].astype(np.float64))
+
+    none, some = green_density(0.0), green_density(0.03)
+    assert (none > 0.5 * intact).mean() < 0.002  # without clumps, nothing of the lysed well is near intact
+    near_intact = (some > 0.5 * intact).mean()
+    # 0.018 measured for 0.03: half of intact needs the noise half an edge above the level, which fewer texels reach
+    assert 0.01 < near_intact < 0.03
+    assert np.all(some >= none - 1e-5)  # clumps only add stain
+    # the clumps are intact cells: the plate's colour, where the rest of the well keeps a pale, bluish one
+    pale = {"lysed_paleness": 1.0, "lysed_hue_deg": 240.0, "lysed_saturation": 0.5, "lysed_clumps": 0.03}
+    variant = lysed.model_copy(update={"stain": lysed.stain.model_copy(update=pale)})
+    absorbance = -np.log(appearance.floor_transmittance(variant, TEXELS_PER_MM)[inside].astype(np.float64))
+    intact_absorbance = -np.log(intact_floor[inside].astype(np.float64))
+    core, film = some > 0.9 * intact, some <= none + 1e-9  # within clumps, and where none lies
+
+    def red_over_blue(a: np.ndarray) -> float:
+        return float(a[:, 0].sum() / a[:, 2].sum())
+
+    assert red_over_blue(absorbance[core]) == pytest.approx(red_over_blue(intact_absorbance), rel=0.02)  # 0.005 measured
+    assert red_over_blue(absorbance[film]) > 1.1 * red_over_blue(intact_absorbance)  # 1.20 times measured
+    assert appearance.clump_level(0.0) == np.inf and appearance.clump_level(0.5) == pytest.approx(0.0)
+
+
+def _blue_density_by_place(scene, well, **stain) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """-log blue floor transmittance (the channel a violet stain passes most) of ``scene`` with ``stain`` changed, each texel's distance from ``well``'s
+    centre (mm) and its direction (radians, plate x axis 0)."""
+    variant = scene.model_copy(update={"plaques": (), "stain": scene.stain.model_copy(update=stain)})
+    blue = -np.log(appearance.floor_transmittance(variant, TEXELS_PER_MM)[..., 2].astype(np.float64))
+    rows, cols = np.indices(blue.shape)
+    du = (cols + 0.5) / TEXELS_PER_MM - well.center_mm[0]
+    dv = (rows + 0.5) / TEXELS_PER_MM - well.center_mm[1]
+    return blue, np.hypot(du, dv), np.arctan2(dv, du)
+
+
+def test_meniscus_darkens_a_thin_line_along_the_rim(base_scene):
+    scene, well = base_scene
+    radius = scene.plate.well_radius_mm
+    plain, distance, _ = _blue_density_by_place(scene, well, meniscus=0.0)
+    lined, _, _ = _blue_density_by_place(scene, well, meniscus=2.0)
+    edge = (distance > radius - 0.1) & (distance < radius)
+    inner = distance < radius - appearance.RIM_REACH * appearance.MENISCUS_MM
+    # 2.56 times measured; 1 + 2 * (0.2 / 0.1) * (1 - e^-0.5) = 2.57 expected over the outer 0.1 mm
+    assert lined[edge].mean() == pytest.approx(2.57 * plain[edge].mean(), rel=0.03)
+    assert np.array_equal(lined[inner], plain[inner])  # nothing changes further in
+
+
+def test_a_one_sided_mottled_band_is_strongest_toward_its_direction(base_scene):
+    scene, well = base_scene
+    radius = scene.plate.well_radius_mm
+    plain, distance, angle = _blue_density_by_place(scene, well, rim_mottle=0.0)
+    band = (distance > radius - 1.0) & (distance < radius)
+
+    def paling(direction_deg: float, side: float) -> tuple[float, float]:
+        """How much paler the band is than without the mottle, on the side facing 0 deg and on the opposite side."""
+        mottled, _, _ = _blue_density_by_place(scene, well, rim_mottle=0.6, rim_mottle_mm=1.0,
+                                                rim_mottle_side=side, rim_mottle_angle_deg=direction_deg)
+        loss = 1.0 - mottled / plain
+        facing = band & (np.cos(angle) > 0.9)
+        opposite = band & (np.cos(angle) < -0.9)
+        return float(loss[facing].mean()), float(loss[opposite].mean())
+
+    even_facing, even_opposite = paling(0.0, 0.0)
+    assert even_facing == pytest.approx(even_opposite, rel=0.3)  # all around
+    facing, opposite = paling(0.0, 1.0)
+    assert facing == pytest.approx(even_facing, rel=0.1) and opposite < 0.05 * facing  # one side only
+    turned_facing, turned_opposite = paling(180.0, 1.0)
+    assert turned_opposite == pytest.approx(facing, rel=0.3) and turned_facing < 0.05 * facing
+
+
 def test_lysed_paleness_moves_a_lysed_wells_remnant_to_the_pale_colour(base_scene):
     scene, well = base_scene
     other = next(w for w in scene.wells if w.id != well.id and not w.emptied)

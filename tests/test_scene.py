@@ -43,11 +43,11 @@ def test_presets_load_and_sample_json_roundtrip(preset):
 # sha256 of sample_scene(load_config(preset), 3).model_dump_json(): sampling must not change without intent (a change
 # here changes every dataset rendered from these presets). Update only for a deliberate change of the sampling.
 SCENE_SHA256_SEED3 = {
-    "diverse": "fb88819604698f80c0b19ddd4ff7888165f8ef326ecb0fa7e7f4fb4628ef3660",
-    "high": "8b861f060d3657ef09a2d5ca7e7410312d499fc779088943daaf3e017aea2225",
-    "lightbox12": "4ddb799b05eecb10025b876f444b94b0f54a594cb9681e3dbfd6acb6f0996c78",
-    "low": "3385beb453029c4d576690b6ae31b55a9969929e6e3cd97d0cf6bb53d77ff9a8",
-    "medium": "87efb04a55a83683b1e75a60e89b05486316e495584d83426a8387ed6cbf9e18",
+    "diverse": "ee539d7b5b592b15b7b2f5d3ca410073614998c2f7cf75d6dcf1930c48887c22",
+    "high": "f53e72a3be5fa971e05ff9eec3f9a304ec33399b3e3a7382bcac6bf77d02fba7",
+    "lightbox12": "a49969467358ec7e5a5e7920256ea98f64ae6543c65ba86cf3ba7f7218e9acfa",
+    "low": "bf3f79fb6799258d60850695b74decfd7a6aac1ae8039321dd314b7cdd10c6b7",
+    "medium": "7600c46f2ab83c0588fd3717d11a4fb35e7ba26040dc15e702e1a5cb7771384d",
 }
 
 
@@ -384,6 +384,9 @@ def test_lysed_paleness_draws_the_remnants_colour_from_the_pale_palette_and_noth
     ("stain", {"stain.lysed_disc": [0.4, 0.8], "stain.lysed_disc_radius": [0.5, 0.6]},
      {"stain.lysed_disc": 0.0, "stain.lysed_disc_radius": 0.6}),
     ("plate_look", {"plate.wall_band": [-0.2, -0.05]}, {"plate.wall_band": 0.04}),
+    ("stain", {"stain.lysed_clumps": [0.01, 0.05]}, {"stain.lysed_clumps": 0.0}),
+    ("stain", {"stain.rim_mottle_side": [0.5, 1.0], "stain.meniscus": [1.0, 2.0]},
+     {"stain.rim_mottle_side": 0.0, "stain.meniscus": 0.0}),
 ])
 def test_a_parameter_added_later_is_drawn_beside_the_others(part, drawn, fixed):
     for seed in range(4):

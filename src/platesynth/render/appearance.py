@@ -26,6 +26,7 @@ from typing import Protocol
 
 import numpy as np
 from numba import njit, prange
+from scipy.special import ndtri
 
 from platesynth.errors import ParameterError
 from platesynth.render.color import srgb_to_linear
@@ -56,6 +57,8 @@ MOTTLE_COVER = 0.5
 """Share of the mottled band's area covered by paler patches (the mottle tile above its median)..."""
 MOTTLE_EDGE = 0.35
 """...with patch edges this soft (unit-sd noise over which a patch fades in)."""
+MENISCUS_MM = 0.2
+"""The dark line of ``stain.meniscus`` fades over this distance inward from the rim."""
 
 # ---- what a lysed well keeps
 LYSED_CLOUD_CENTRE, LYSED_CLOUD_NOISE = 0.55, 0.25
@@ -75,6 +78,11 @@ LYSED_DISC_EDGE_MM = 2.5
 LYSED_DISC_WOBBLE_MM, LYSED_DISC_FRAY_MM = 1.0, 0.4
 """...which wobbles by this much per sd of the unevenness grid (read as the cloud reads it) and frays by this much
 per sd of the mottle tile (read at the flakes' cell)."""
+LYSED_CLUMP_CELL_MM = 0.3
+"""Cell of the clumps of intact cells in a lysed well (the mottle tile read at this cell, shifted: islands where it
+stands above the level that covers ``stain.lysed_clumps`` of the area)..."""
+LYSED_CLUMP_EDGE = 0.25
+"""...their edges fading in over this much of the tile's unit sd above that level."""
 LYSED_RIM_LOSS, LYSED_RIM_MM = 0.7, 1.5
 """A lysed layer keeps ``stain.lysed_density`` of its density where the remnant is full, and loses this much more
 within this distance of the rim."""
@@ -130,12 +138,17 @@ STAIN_DTYPE = np.dtype(
         ("translucency", np.float64),
         ("rim_mottle", np.float64),
         ("rim_mottle_mm", np.float64),
+        ("rim_mottle_side", np.float64),
+        ("rim_mottle_cos", np.float64),  # the direction of the side where the band is strongest
+        ("rim_mottle_sin", np.float64),
+        ("meniscus", np.float64),
         ("lysed_density", np.float64),
         ("lysed_residue", np.float64),
         ("lysed_strands", np.float64),
         ("lysed_grain", np.float64),
         ("lysed_disc", np.float64),
         ("lysed_disc_radius", np.float64),
+        ("lysed_clump_level", np.float64),  # the tile's level above which a clump lies (inf: none)
         ("absorbance_r", np.float64),  # -log of the stain's linear colour: the absorbance at density 1
         ("absorbance_g", np.float64),
         ("absorbance_b", np.float64),
@@ -187,9 +200,17 @@ def stain_table(scene: Scene, textures: SceneTextures) -> np.ndarray:
         lysed_absorbance = (1.0 - stain.lysed_paleness) * absorbance + stain.lysed_paleness * pale
     table = np.zeros(1, dtype=STAIN_DTYPE)
     table[0] = (stain.unevenness, textures.low_cell_mm, stain.centre_elongation, stain.rim_clearing_mm,
-                stain.translucency, stain.rim_mottle, stain.rim_mottle_mm, stain.lysed_density, stain.lysed_residue, stain.lysed_strands,
-                stain.lysed_grain, stain.lysed_disc, stain.lysed_disc_radius, *absorbance, *lysed_absorbance)
+                stain.translucency, stain.rim_mottle, stain.rim_mottle_mm, stain.rim_mottle_side,
+                math.cos(math.radians(stain.rim_mottle_angle_deg)), math.sin(math.radians(stain.rim_mottle_angle_deg)),
+                stain.meniscus, stain.lysed_density, stain.lysed_residue, stain.lysed_strands,
+                stain.lysed_grain, stain.lysed_disc, stain.lysed_disc_radius, clump_level(stain.lysed_clumps), *absorbance,
+                *lysed_absorbance)
     return table
+
+
+def clump_level(share: float) -> float:
+    """The level of unit-sd Gaussian noise exceeded on ``share`` of the area (``inf`` for none)."""
+    return float(ndtri(1.0 - share)) if share > 0.0 else math.inf
 
 
 def stain_absorbance(stain: Stain) -> np.ndarray:
@@ -227,7 +248,8 @@ def well_at(u, v, a1x, a1y, pitch, rows, cols):
 @njit(cache=True, nogil=True, inline="always")
 def monolayer_density(u, v, du, dv, dist, radius, well, stain, low_grid, fibre_grid, fine_tile, mottle_tile):
     """Density of the intact (or lysed) monolayer of ``well`` at plate point ``(u, v)``, ``(du, dv)`` from the
-    well's centre at distance ``dist``; before plaques and marks."""
+    well's centre at distance ``dist``, before plaques and marks; and the share of it that takes the colour of what a
+    lysed well keeps (the well's flag, 0 or 1, less the clumps of intact cells in a lysed well)."""
     low_cell = stain.unevenness_cell_mm
     density = well.density * (1.0 + stain.unevenness * grid_sample(low_grid, u / low_cell, v / low_cell))
     spread = CENTRE_SPREAD * radius
@@ -248,7 +270,12 @@ def monolayer_density(u, v, du, dv, dist, radius, well, stain, low_grid, fibre_g
         patch = tile_sample(mottle_tile, (u + well.noise_y) / MOTTLE_CELL_MM, (v + well.noise_x) / MOTTLE_CELL_MM)
         patch = clip01(0.5 + patch / (2.0 * MOTTLE_EDGE))
         band = math.exp(-max(radius - dist, 0.0) / stain.rim_mottle_mm)
+        if stain.rim_mottle_side > 0.0 and dist > 0.0:  # strongest on one side, weakest on the other
+            facing = (du * stain.rim_mottle_cos + dv * stain.rim_mottle_sin) / dist
+            band *= 1.0 - stain.rim_mottle_side * 0.5 * (1.0 - facing)
         density *= 1.0 - stain.rim_mottle * band * patch
+    if stain.meniscus > 0.0 and radius - dist < RIM_REACH * MENISCUS_MM:
+        density *= 1.0 + stain.meniscus * math.exp(-max(radius - dist, 0.0) / MENISCUS_MM)
     if well.lysed > 0.5:
         # what is left of a lysed layer: a cloud around the centre and a network of strands
         fibre = grid_sample(fibre_grid, u / FIBRE_CELL_MM, v / FIBRE_CELL_MM)
@@ -268,8 +295,15 @@ def monolayer_density(u, v, du, dv, dist, radius, well, stain, low_grid, fibre_g
         if stain.lysed_grain > 0.0:  # flakes of what is left (the mottle tile, read in another place)
             flakes = tile_sample(mottle_tile, (u + well.noise_x) / LYSED_FLAKE_CELL_MM, (v + well.noise_y) / LYSED_FLAKE_CELL_MM)
             remnant *= max(1.0 + stain.lysed_grain * flakes, 0.0)
+        intact = density
         density *= stain.lysed_density * remnant * (1.0 - LYSED_RIM_LOSS * math.exp(-max(radius - dist, 0.0) / LYSED_RIM_MM))
-    return density
+        if stain.lysed_clump_level < math.inf:  # islands of intact cells the virus left
+            lump = tile_sample(mottle_tile, (u + well.noise_y) / LYSED_CLUMP_CELL_MM + LYSED_CLOUD_SHIFT,
+                               (v + well.noise_x) / LYSED_CLUMP_CELL_MM)
+            clump = clip01((lump - stain.lysed_clump_level) / LYSED_CLUMP_EDGE)
+            if clump > 0.0:
+                return max(density, clump * intact), 1.0 - clump
+    return density, well.lysed
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -288,13 +322,13 @@ def changed_density(density, u, v, well, clearing, rim, scratched, speck, residu
 
 @njit(cache=True, nogil=True, inline="always")
 def stain_transmittance(density, stain, lysed):
-    """Linear RGB transmittance of a layer of ``density`` (Beer-Lambert; the translucent share passes); ``lysed``
-    (0 or 1, a well's flag) takes the colour of what a lysed well keeps."""
+    """Linear RGB transmittance of a layer of ``density`` (Beer-Lambert; the translucent share passes); the share
+    ``lysed`` (0..1, from :func:`monolayer_density`) of it takes the colour of what a lysed well keeps."""
     t = stain.translucency
-    if lysed > 0.5:
-        r, g, b = stain.lysed_absorbance_r, stain.lysed_absorbance_g, stain.lysed_absorbance_b
-    else:
-        r, g, b = stain.absorbance_r, stain.absorbance_g, stain.absorbance_b
+    kept = 1.0 - lysed
+    r = kept * stain.absorbance_r + lysed * stain.lysed_absorbance_r
+    g = kept * stain.absorbance_g + lysed * stain.lysed_absorbance_g
+    b = kept * stain.absorbance_b + lysed * stain.lysed_absorbance_b
     return (
         t + (1.0 - t) * math.exp(-density * r),
         t + (1.0 - t) * math.exp(-density * g),
@@ -565,11 +599,11 @@ def _bake_floor(texel_mm, a1x, a1y, pitch, rows, cols, radius, wells, stain, low
                 out[y, x, 1] = 1.0
                 out[y, x, 2] = 1.0
                 continue
-            density = monolayer_density(u, v, du, dv, dist, radius, well, st, low_grid, fibre_grid, fine_tile,
-                                        mottle_tile)
+            density, lysed = monolayer_density(u, v, du, dv, dist, radius, well, st, low_grid, fibre_grid, fine_tile,
+                                               mottle_tile)
             density = changed_density(density, u, v, well, clearing[y, x], rim[y, x], scratched[y, x], specks[y, x],
                                       residual_tile)
-            r, g, b = stain_transmittance(density, st, well.lysed)
+            r, g, b = stain_transmittance(density, st, lysed)
             out[y, x, 0] = r
             out[y, x, 1] = g
             out[y, x, 2] = b

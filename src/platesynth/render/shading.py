@@ -252,11 +252,11 @@ def shade(
                 layer_g = 1.0
                 layer_b = 1.0
                 if disc > 0.0 and well.emptied < 0.5:
-                    density = appearance.monolayer_density(u, v, du, dv, dist, f.radius, well, st, low_grid,
-                                                           fibre_grid, fine_tile, mottle_tile)
+                    density, lysed = appearance.monolayer_density(u, v, du, dv, dist, f.radius, well, st, low_grid,
+                                                                  fibre_grid, fine_tile, mottle_tile)
                     density = appearance.changed_density(density, u, v, well, clearing[y, x], rim[y, x],
                                                          scratched[y, x], specks[y, x], residual_tile)
-                    layer_r, layer_g, layer_b = appearance.stain_transmittance(density, st, well.lysed)
+                    layer_r, layer_g, layer_b = appearance.stain_transmittance(density, st, lysed)
                     layer_r = layer_r * disc + 1.0 - disc
                     layer_g = layer_g * disc + 1.0 - disc
                     layer_b = layer_b * disc + 1.0 - disc

@@ -112,6 +112,11 @@ class StainConfig(Section):
     translucency: Dist = number([0.0, 0.008], 0.0, 1.0, "", "fraction of light passing un-absorbed")
     rim_mottle: Dist = number(0.0, 0.0, 1.0, "", "how much paler the patches of a mottled band along the rim are")
     rim_mottle_mm: Dist = number(2.0, 0.1, 10.0, "mm", "width of the mottled band along the rim")
+    rim_mottle_side: Dist = number(
+        0.0, 0.0, 1.0, "", "how one-sided the mottled band is: 0 even all around, 1 only on the side of each well that "
+        "faces one direction of the plate (drawn per plate: the side toward which the plate was tilted to empty it)")
+    meniscus: Dist = number(0.0, 0.0, 5.0, "", "extra stain density, relative, in a thin dark line along the rim where "
+                            "the meniscus of the stain left more dye")
     lysed_density: Dist = number(0.6, 0.0, 2.0, "", "density a lysed well keeps where its remnant is full, relative")
     lysed_residue: Dist = number(0.04, 0.0, 1.0, "", "share of the layer a lysed well keeps everywhere (a pale film)")
     lysed_strands: Dist = number(1.0, 0.0, 3.0, "", "strength of the network of strands a lysed well keeps")
@@ -120,6 +125,9 @@ class StainConfig(Section):
         0.0, 0.0, 1.0, "", "share of what a lysed well keeps that gathers in a denser central disc with a ragged "
         "edge, the rest thinning out around it: 0 a cloud over the whole well")
     lysed_disc_radius: Dist = number(0.6, 0.2, 0.9, "", "radius of that disc, share of the well's radius")
+    lysed_clumps: Dist = number(
+        0.0, 0.0, 0.3, "", "share of a lysed well's area still holding clumps of intact cells: dense, dark islands of "
+        "the plate's stain, a fraction of a millimetre to about two across, amid the pale film")
     lysed_paleness: Dist = number(
         0.0, 0.0, 1.0, "", "how far the colour of what a lysed well keeps moves from the plate's stain toward a pale, "
         "bluish one drawn from pale_hue_deg and pale_saturation (a thin film of damaged cells): 0 the plate's, 1 the pale")

@@ -77,12 +77,17 @@ class Stain(_Concrete):
     translucency: float = Field(description="fraction of light passing un-absorbed (gaps in the layer), 0..1")
     rim_mottle: float = Field(0.0, description="how much paler the patches of the mottled band along the rim are, 0..1")
     rim_mottle_mm: float = Field(2.0, description="width of the mottled band along the rim, mm")
+    rim_mottle_side: float = Field(0.0, description="how one-sided the mottled band is, 0 (all around) to 1")
+    rim_mottle_angle_deg: float = Field(0.0, description="direction of the side where the band is strongest, degrees "
+                                        "(plate x axis 0, y axis 90)")
+    meniscus: float = Field(0.0, description="extra stain density in a thin line along the rim, relative")
     lysed_density: float = Field(0.6, description="density a lysed well keeps where its remnant is full, relative")
     lysed_residue: float = Field(0.04, description="share of the layer a lysed well keeps everywhere (a pale film)")
     lysed_strands: float = Field(1.0, description="strength of the network of strands a lysed well keeps")
     lysed_grain: float = Field(0.0, description="granular texture of what a lysed well keeps (relative, per sd)")
     lysed_disc: float = Field(0.0, description="share of what a lysed well keeps gathered in a central disc, 0..1")
     lysed_disc_radius: float = Field(0.6, description="radius of that disc, share of the well's radius")
+    lysed_clumps: float = Field(0.0, description="share of a lysed well's area still holding clumps of intact cells")
     lysed_paleness: float = Field(
         0.0, description="how far the colour of what a lysed well keeps moves from the plate's toward the pale one, 0..1")
     lysed_hue_deg: float | None = Field(None, description="hue of the pale colour of what a lysed well keeps, degrees")

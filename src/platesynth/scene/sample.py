@@ -195,6 +195,7 @@ def sample_scene(config: SceneConfig, seed: int) -> Scene:
                         "lysed_saturation": c.stain.draw("pale_saturation", lysed_palette)}
     lysed_disc = scene_rng(seed, "lysed_disc")  # the disc of what lysed wells keep, likewise
     lysed_shape = {name: c.stain.draw(name, lysed_disc) for name in ("lysed_disc", "lysed_disc_radius")}
+    lysed_shape["lysed_clumps"] = c.stain.draw("lysed_clumps", scene_rng(seed, "lysed_clumps"))  # likewise
     stain = Stain(
         hue_deg=hue_deg,
         saturation=saturation,
@@ -326,6 +327,11 @@ def sample_scene(config: SceneConfig, seed: int) -> Scene:
     # the look of plaques and of the rim's mottle are drawn last, so that adding them left every earlier draw as it was
     plaque_look = PlaqueLook(**{name: c.plaques.draw(name, rng) for name in PlaqueLook.model_fields})
     stain = stain.model_copy(update={name: c.stain.draw(name, rng) for name in STAIN_DRAWN_LAST})
+    rim_band = scene_rng(seed, "rim_band")  # drawn beside the main order: scenes drawn before stay
+    side_angle = round(float(rim_band.uniform(0.0, 360.0)), 2)  # first: a fixed setting below draws nothing
+    stain = stain.model_copy(update={"rim_mottle_angle_deg": side_angle,
+                                     "rim_mottle_side": c.stain.draw("rim_mottle_side", rim_band),
+                                     "meniscus": c.stain.draw("meniscus", rim_band)})
     plaques = _shrink_crowded(plaques, c.plaques.draw("max_coverage", rng), plate.well_radius_mm)
     return Scene(
         seed=texture_seed,
