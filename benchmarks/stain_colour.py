@@ -2,7 +2,9 @@
 
 For every well, the median hue, saturation and value (HSV) of the pixels within 0.6 of its radius from its centre
 (the stained monolayer, mostly; the median is robust to a few plaques), and the median of its green channel in
-8-bit levels (a saturated violet has almost none: how far a camera's tone curve crushes it). Real wells are found
+8-bit levels (a saturated violet has almost none: how far a camera's tone curve crushes it), and its fine grain: the
+standard deviation, in 8-bit levels, of the luminance less its Gaussian blur of 1.5 px (a phone's smooth saturated
+wells have almost none, sensor noise and a sharpened texture have some). Real wells are found
 with the fitted plate grid (:func:`platesynth.metrics.fit_plate_grid`), synthetic ones with their true masks, raster
 renders at the photos' size. Prints the 10th, 50th and 90th percentiles per split and for the preset.
 
@@ -22,6 +24,8 @@ ROOT = Path(__file__).resolve().parents[1]
 SHARED = Path(os.environ.get("PLATESYNTH_SHARED", ROOT.parent / "shared"))
 CENTRE_SHARE = 0.6
 """Pixels within this share of the well's radius from its centre are measured."""
+GRAIN_BLUR_PX = 1.5
+"""The grain is what a Gaussian blur of this sd (pixels, at the photos' size) takes away."""
 
 
 def main(argv: list[str] | None = None) -> None:
@@ -31,6 +35,7 @@ def main(argv: list[str] | None = None) -> None:
     args = parser.parse_args(argv)
 
     import numpy as np
+    from scipy import ndimage
     from skimage.color import rgb2hsv
 
     from platesynth.io import list_images, read_image
@@ -39,18 +44,21 @@ def main(argv: list[str] | None = None) -> None:
     from platesynth.scene import sample_scene
 
     def well_medians(image, discs) -> np.ndarray:
-        """Per well: median hue, saturation, value (0..1) and green level (0..255) of its centre."""
+        """Per well: median hue, saturation, value (0..1) and green level (0..255) of its centre, and its grain."""
         hsv_green = np.concatenate([rgb2hsv(image), image[..., 1:2].astype(np.float64)], axis=2)
+        luminance = image[..., :3].astype(np.float64) @ np.array([0.299, 0.587, 0.114])
+        fine = luminance - ndimage.gaussian_filter(luminance, GRAIN_BLUR_PX)
         yy, xx = np.mgrid[: image.shape[0], : image.shape[1]]
-        return np.array([
-            np.median(hsv_green[(yy - d.cy) ** 2 + (xx - d.cx) ** 2 < (CENTRE_SHARE * d.radius) ** 2], axis=0)
-            for d in discs
-        ])
+        rows = []
+        for d in discs:
+            centre = (yy - d.cy) ** 2 + (xx - d.cx) ** 2 < (CENTRE_SHARE * d.radius) ** 2
+            rows.append([*np.median(hsv_green[centre], axis=0), fine[centre].std()])
+        return np.array(rows)
 
     def report(label: str, medians: np.ndarray) -> None:
-        hue, sat, val, green = (np.percentile(medians[:, k], [10, 50, 90]) for k in range(4))
+        hue, sat, val, green, grain = (np.percentile(medians[:, k], [10, 50, 90]) for k in range(5))
         print(f"{label:24s} {len(medians):5d}  hue {np.round(hue * 360).astype(int)}  saturation {np.round(sat, 2)}  "
-              f"value {np.round(val, 2)}  green {np.round(green).astype(int)}")
+              f"value {np.round(val, 2)}  green {np.round(green).astype(int)}  grain {np.round(grain, 2)}")
 
     photos = list_images(SHARED / "data" / "plaque12" / "plates")
     if not photos:
