@@ -211,10 +211,9 @@ def test_a_one_sided_mottled_band_is_strongest_toward_its_direction(base_scene):
         """How much paler the band is than without the mottle, on the side facing 0 deg and on the opposite side."""
         mottled, _, _ = _blue_density_by_place(scene, well, rim_mottle=0.6, rim_mottle_mm=1.0,
                                                 rim_mottle_side=side, rim_mottle_angle_deg=direction_deg)
-        loss = 1.0 - mottled / plain
         facing = band & (np.cos(angle) > 0.9)
         opposite = band & (np.cos(angle) < -0.9)
-        return float(loss[facing].mean()), float(loss[opposite].mean())
+        return tuple(float((1.0 - mottled[side] / plain[side]).mean()) for side in (facing, opposite))
 
     even_facing, even_opposite = paling(0.0, 0.0)
     assert even_facing == pytest.approx(even_opposite, rel=0.3)  # all around
