@@ -44,7 +44,7 @@ def test_presets_load_and_sample_json_roundtrip(preset):
 # here changes every dataset rendered from these presets). Update only for a deliberate change of the sampling.
 SCENE_SHA256_SEED3 = {
     "diverse": "ee539d7b5b592b15b7b2f5d3ca410073614998c2f7cf75d6dcf1930c48887c22",
-    "high": "85d6f283ef720019c0b55076af840f464bb8f2cf6de24c41cf1bdf2afb05db09",
+    "high": "f53e72a3be5fa971e05ff9eec3f9a304ec33399b3e3a7382bcac6bf77d02fba7",
     "lightbox12": "a49969467358ec7e5a5e7920256ea98f64ae6543c65ba86cf3ba7f7218e9acfa",
     "low": "bf3f79fb6799258d60850695b74decfd7a6aac1ae8039321dd314b7cdd10c6b7",
     "medium": "7600c46f2ab83c0588fd3717d11a4fb35e7ba26040dc15e702e1a5cb7771384d",
