@@ -3,9 +3,9 @@
 For every well, the median hue, saturation and value (HSV) of the pixels within 0.6 of its radius from its centre
 (the stained monolayer, mostly; the median is robust to a few plaques), and the median of its green channel in
 8-bit levels (a saturated violet has almost none: how far a camera's tone curve crushes it), and its fine grain: the
-standard deviation, in 8-bit levels, of the luminance less its Gaussian blur of 1.5 px (a phone's smooth saturated
-wells have almost none, sensor noise and a sharpened texture have some). Real wells are found
-with the fitted plate grid (:func:`platesynth.metrics.fit_plate_grid`), synthetic ones with their true masks, raster
+standard deviation, in 8-bit levels, of the luminance (the post-processing's weights) less its Gaussian blur of 1.5 px
+(a phone's smooth saturated wells have almost none, sensor noise and a sharpened texture have some). Real wells are
+found with the fitted plate grid (:func:`platesynth.metrics.fit_plate_grid`), synthetic ones with their true masks, raster
 renders at the photos' size. Prints the 10th, 50th and 90th percentiles per split and for the preset.
 
 Run: ``python benchmarks/stain_colour.py`` (``--preset P``, ``--images N``, ``--set name=value`` overrides).
@@ -40,13 +40,14 @@ def main(argv: list[str] | None = None) -> None:
 
     from platesynth.io import list_images, read_image
     from platesynth.metrics import fit_plate_grid, wells_from_mask
+    from platesynth.render.look import LUMINANCE
     from platesynth.render.raster import render_raster
     from platesynth.scene import sample_scene
 
     def well_medians(image, discs) -> np.ndarray:
         """Per well: median hue, saturation, value (0..1) and green level (0..255) of its centre, and its grain."""
         hsv_green = np.concatenate([rgb2hsv(image), image[..., 1:2].astype(np.float64)], axis=2)
-        luminance = image[..., :3].astype(np.float64) @ np.array([0.299, 0.587, 0.114])
+        luminance = image[..., :3].astype(np.float64) @ np.array(LUMINANCE)
         fine = luminance - ndimage.gaussian_filter(luminance, GRAIN_BLUR_PX)
         yy, xx = np.mgrid[: image.shape[0], : image.shape[1]]
         rows = []
