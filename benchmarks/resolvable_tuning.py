@@ -32,13 +32,14 @@ def main(argv: list[str] | None = None) -> None:
     import torch
 
     from platesynth.data.layout import list_items
-    from platesynth.segment.model import load_model
+    from platesynth.io import write_json
+    from platesynth.segment.model import CONFIG_NAME, load_model
     from platesynth.segment.train import (
         TrainConfig,
-        _validation_at,
         choose_thresholds,
         split_sources,
         threshold_scores,
+        validation_at,
         validation_items,
     )
 
@@ -56,7 +57,7 @@ def main(argv: list[str] | None = None) -> None:
         for cells in (0.0, args.cells):
             scores = threshold_scores(model, items, min_resolved_cells=cells)
             thresholds = choose_thresholds(scores)
-            at = _validation_at(scores, *thresholds["plaques"])
+            at = validation_at(scores, *thresholds["plaques"])
             print(f"{folder.name}  cells {cells:g}: plaques prob/NMS {thresholds['plaques']}, wells "
                   f"{thresholds['wells']}; validation count MAE {at['count_mae']:.2f}, bias {at['count_bias']:+.2f} "
                   f"over {at['countable_wells']} wells of {len(items)} images")
@@ -64,10 +65,8 @@ def main(argv: list[str] | None = None) -> None:
                 copy = args.out / f"{folder.name}-c{cells:g}"
                 shutil.rmtree(copy, ignore_errors=True)
                 shutil.copytree(folder, copy)
-                saved = json.loads((copy / "config.json").read_text())
-                for name, (prob, nms) in thresholds.items():
-                    saved["branches"][name]["prob_thresh"], saved["branches"][name]["nms_thresh"] = prob, nms
-                (copy / "config.json").write_text(json.dumps(saved, indent=2))
+                model.config.set_thresholds(thresholds)
+                write_json(copy / CONFIG_NAME, model.config.model_dump(mode="json"))
 
 
 if __name__ == "__main__":

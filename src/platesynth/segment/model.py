@@ -117,6 +117,11 @@ class ModelConfig(BaseModel):
         """Per branch, the stored (probability, NMS) threshold pair."""
         return {name: (branch.prob_thresh, branch.nms_thresh) for name, branch in self.branches.items()}
 
+    def set_thresholds(self, thresholds: dict[str, tuple[float, float]]) -> None:
+        """Store a (probability, NMS) threshold pair per named branch (those not named keep theirs)."""
+        for name, (prob, nms) in thresholds.items():
+            self.branches[name].prob_thresh, self.branches[name].nms_thresh = prob, nms
+
 
 def _conv_block(in_channels: int, out_channels: int, dilations: tuple[int, ...] = (1, 1)) -> nn.Sequential:
     layers: list[nn.Module] = []

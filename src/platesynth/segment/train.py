@@ -378,7 +378,7 @@ def one_standard_error_choice(errors: Sequence[Sequence[float]] | np.ndarray, de
     return int(np.flatnonzero(means <= means[lowest] + spread)[0])
 
 
-def _validation_at(scores: ThresholdScores, prob: float, nms: float) -> dict[str, float | int | None]:
+def validation_at(scores: ThresholdScores, prob: float, nms: float) -> dict[str, float | int | None]:
     """How the plaques of the validation images' countable wells fare at one threshold pair (kept with the model)."""
     i, j = scores.prob_thresholds.index(prob), scores.nms_thresholds.index(nms)
     errors = scores.count_errors[i, j]
@@ -528,9 +528,8 @@ def train(
     if config.tune_thresholds and val_items:
         scores = threshold_scores(best, val_items, min_resolved_cells=config.min_resolved_cells)
         thresholds = choose_thresholds(scores)
-        at_thresholds = _validation_at(scores, *thresholds["plaques"])
-    for name, (prob, nms) in thresholds.items():
-        best.config.branches[name].prob_thresh, best.config.branches[name].nms_thresh = prob, nms
+        at_thresholds = validation_at(scores, *thresholds["plaques"])
+    best.config.set_thresholds(thresholds)
     if config.tune_thresholds:
         best.config.countable_min_stained = tune_countability(val_items)
     best.config.training = {
