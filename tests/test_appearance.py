@@ -119,6 +119,14 @@ def test_lysed_density_sets_how_pale_a_lysed_well_is(base_scene):
     assert fine_detail(grainy) > 1.25 * fine_detail(smooth)  # 1.36 measured (strands and drying detail remain)
 
 
+def _texel_places(shape: tuple[int, ...], well) -> tuple[np.ndarray, np.ndarray]:
+    """Each floor texel's distance from ``well``'s centre (mm) and its direction (radians, plate x axis 0)."""
+    rows, cols = np.indices(shape[:2])
+    du = (cols + 0.5) / TEXELS_PER_MM - well.center_mm[0]
+    dv = (rows + 0.5) / TEXELS_PER_MM - well.center_mm[1]
+    return np.hypot(du, dv), np.arctan2(dv, du)
+
+
 def test_lysed_disc_gathers_the_remnant_in_the_middle_of_the_well(base_scene):
     scene, well = base_scene
     lysed = scene.model_copy(update={
@@ -129,9 +137,7 @@ def test_lysed_disc_gathers_the_remnant_in_the_middle_of_the_well(base_scene):
         """Mean -log green transmittance within 0.3 radii of the centre, and between 0.8 and 0.95."""
         variant = lysed.model_copy(update={"stain": lysed.stain.model_copy(update=stain)})
         green = -np.log(appearance.floor_transmittance(variant, TEXELS_PER_MM)[..., 1].astype(np.float64))
-        rows, cols = np.indices(green.shape)
-        distance = np.hypot((rows + 0.5) / TEXELS_PER_MM - well.center_mm[1],
-                            (cols + 0.5) / TEXELS_PER_MM - well.center_mm[0])
+        distance, _ = _texel_places(green.shape, well)
         return (float(green[distance < 0.3 * radius].mean()),
                 float(green[(distance > 0.8 * radius) & (distance < 0.95 * radius)].mean()))
 
@@ -148,9 +154,7 @@ def test_lysed_clumps_keep_islands_of_intact_stain_on_about_their_share_of_the_w
     lysed = scene.model_copy(update={
         "plaques": (), "wells": tuple(w.model_copy(update={"lysed": w.id == well.id}) for w in scene.wells)})
     intact_floor = appearance.floor_transmittance(scene.model_copy(update={"plaques": ()}), TEXELS_PER_MM)
-    rows, cols = np.indices(intact_floor.shape[:2])
-    inside = np.hypot((rows + 0.5) / TEXELS_PER_MM - well.center_mm[1],
-                      (cols + 0.5) / TEXELS_PER_MM - well.center_mm[0]) < 0.9 * scene.plate.well_radius_mm
+    inside = _texel_places(intact_floor.shape, well)[0] < 0.9 * scene.plate.well_radius_mm
     intact = -np.log(intact_floor[..., 1][inside].astype(np.float64))
 
     def green_density(clumps: float) -> np.ndarray:
@@ -179,14 +183,11 @@ def test_lysed_clumps_keep_islands_of_intact_stain_on_about_their_share_of_the_w
 
 
 def _blue_density_by_place(scene, well, **stain) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """-log blue floor transmittance (the channel a violet stain passes most) of ``scene`` with ``stain`` changed, each texel's distance from ``well``'s
-    centre (mm) and its direction (radians, plate x axis 0)."""
+    """-log blue floor transmittance (the channel a violet stain passes most) of ``scene`` with ``stain`` changed, and
+    :func:`_texel_places`."""
     variant = scene.model_copy(update={"plaques": (), "stain": scene.stain.model_copy(update=stain)})
     blue = -np.log(appearance.floor_transmittance(variant, TEXELS_PER_MM)[..., 2].astype(np.float64))
-    rows, cols = np.indices(blue.shape)
-    du = (cols + 0.5) / TEXELS_PER_MM - well.center_mm[0]
-    dv = (rows + 0.5) / TEXELS_PER_MM - well.center_mm[1]
-    return blue, np.hypot(du, dv), np.arctan2(dv, du)
+    return blue, *_texel_places(blue.shape, well)
 
 
 def test_meniscus_darkens_a_thin_line_along_the_rim(base_scene):
