@@ -5,12 +5,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from _geometry import distance_to_top_edges, wall_band
+from _geometry import distance_to_top_edges, pixel_centres_mm, wall_band
 from platesynth.errors import ParameterError, ShapeMismatchError
 from platesynth.render import postprocess as pp
 from platesynth.render import render
 from platesynth.render.masks import clean_isolated_pixels
-from platesynth.render.raster import camera_view, render_raster
+from platesynth.render.raster import camera_view, parallax, render_raster, wells_in_view
 from platesynth.render.result import plaque_counts
 from platesynth.scene import Scene, load_config, sample_scene
 from platesynth.scene.concrete import Plaque
@@ -259,3 +259,40 @@ def test_the_band_over_the_walls_is_as_bright_as_asked():
     assert 0.90 < ratio < 0.925  # (1 - 0.15) / 1.04 = 0.817 in linear light, 0.91 display-encoded; 0.913 measured
     wide = ~wall_band(dark, size, margin_px=-6.0)  # beyond the reach of the blur and the sharpening
     assert np.array_equal(before.image[wide], after.image[wide])
+
+
+def test_the_walls_foot_below_the_floor_shifts_the_band_outward():
+    """``plate.floor_height_mm`` lifts the floors above the walls' foot: seen from below, the foot is nearer the
+    camera, so its band and outlines are magnified by ``d / (d - h)`` about the camera's axis and shift away from it,
+    and where the foot's opening shows no floor the band's brightness takes its place. The masks do not change (the
+    plastic is clear), nor any pixel far from the walls."""
+    size = (640, 480)
+    settings = {"plaques.negative_plate": 1.0, "camera.distance_mm": 180.0, "wells.emptied": 0.0, "post.jpeg": 0.0,
+                "post.clarity": 0.0, "post.bloom": 0.0, "post.noise": 0.0, "plate.top_edge_through_floor": 0.0,
+                "plate.wall_band": 0.3}
+    flat, lifted = (small_scene("high", 6, **settings, **{"plate.floor_height_mm": h}) for h in (0.0, 5.0))
+    before, after = render(flat, size), render(lifted, size)
+    assert np.array_equal(before.wells, after.wells) and np.array_equal(before.plaques, after.plaques)
+    view = camera_view(lifted, *size)
+    wells, _, _ = wells_in_view(lifted, view)
+    centres = np.array([w.center_mm for w in wells])
+    feet, scale = parallax(lifted, view, -5.0, centres)
+    assert scale == pytest.approx(180.0 / (180.0 - 5.0))
+    radius, wall = lifted.plate.well_radius_mm, lifted.plate.wall_mm
+    u, v = pixel_centres_mm(view)
+    margin = 1.5 / view.px_per_mm  # beyond the outlines and the blur
+    was_band, is_band, was_near, is_near, near = (np.zeros(u.shape, dtype=bool) for _ in range(5))
+    for (cx, cy), (fx, fy) in zip(centres, feet, strict=True):
+        to_floor = np.hypot(u - cx, v - cy)
+        to_foot = np.hypot(u - fx, v - fy)
+        was_band |= (to_floor > radius + margin) & (to_floor < radius + wall - margin)
+        was_near |= to_floor < radius + wall + margin
+        is_band |= (to_foot < (radius + wall) * scale - margin) & (to_floor > radius + margin)
+        is_near |= to_foot < (radius + wall) * scale + margin
+        near |= to_floor < radius + wall + 3.0  # the shift, the outlines, the blur and the sharpening
+    brighter = after.image.astype(np.float64).mean(axis=2) - before.image.astype(np.float64).mean(axis=2)
+    gained, lost = is_band & ~was_near, was_band & ~is_near
+    assert gained.sum() > 300 and lost.sum() > 100
+    assert brighter[gained].mean() > 15.0  # levels: the band is 30 % brighter in linear light
+    assert brighter[lost].mean() < -15.0
+    assert np.array_equal(before.image[~near], after.image[~near])

@@ -114,6 +114,8 @@ WELL_DTYPE = np.dtype(
         ("cy", np.float64),
         ("top_cx", np.float64),  # its wall's top edge seen with parallax (mm)
         ("top_cy", np.float64),
+        ("foot_cx", np.float64),  # its wall's foot, below the floor, seen with parallax (mm)
+        ("foot_cy", np.float64),
         ("density", np.float64),
         ("centre_gradient", np.float64),
         ("centre_cos", np.float64),  # direction of the elongated centre
@@ -176,13 +178,15 @@ PLAQUE_DTYPE = np.dtype(
 """One row per plaque, in the scene's drawing order (:func:`plaque_table`)."""
 
 
-def well_table(wells: list[Well], top_centres: np.ndarray, well_offsets: np.ndarray) -> np.ndarray:
-    """The :data:`WELL_DTYPE` rows of ``wells`` (plate row-major order), their top edges' centres and noise shifts."""
+def well_table(wells: list[Well], top_centres: np.ndarray, foot_centres: np.ndarray, well_offsets: np.ndarray
+               ) -> np.ndarray:
+    """The :data:`WELL_DTYPE` rows of ``wells`` (plate row-major order), the centres of their walls' top edges and
+    feet, and their noise shifts."""
     table = np.zeros(len(wells), dtype=WELL_DTYPE)
     for i, w in enumerate(wells):
         angle = math.radians(w.stain.centre_angle_deg)
         table[i] = (
-            w.id, *w.center_mm, *top_centres[i], w.stain.density, w.stain.centre_gradient, math.cos(angle),
+            w.id, *w.center_mm, *top_centres[i], *foot_centres[i], w.stain.density, w.stain.centre_gradient, math.cos(angle),
             math.sin(angle), *w.stain.centre_offset_mm, w.stain.drying_detail, float(w.lysed), float(w.emptied),
             *well_offsets[i],
         )
@@ -660,7 +664,7 @@ def floor_transmittance(scene: Scene, texels_per_mm: float, textures: SceneTextu
     content = draw_well_content(scene, grid, wells, centres, plate.well_radius_mm, textures)
     out = np.empty((grid.height, grid.width, 3), dtype=np.float32)
     _bake_floor(1.0 / grid.px_per_mm, plate.a1_x_mm, plate.a1_y_mm, plate.pitch_mm, plate.rows, plate.cols,
-                plate.well_radius_mm, well_table(wells, centres, textures.well_offsets), stain_table(scene, textures),
+                plate.well_radius_mm, well_table(wells, centres, centres, textures.well_offsets), stain_table(scene, textures),
                 textures.low_grid, fibre_grid_or_empty(textures), textures.fine_tile, textures.mottle_tile,
                 textures.residual_tile, content.clearing, content.rim, content.scratched, content.specks, out)
     return out

@@ -107,21 +107,26 @@ def marker_ink(scene: Scene, k: float) -> np.ndarray:
     return linear_lut()[np.asarray(ink)]
 
 
+def parallax(scene: Scene, view: View, height_mm: float, points_mm: np.ndarray) -> tuple[np.ndarray, float]:
+    """Where the camera sees plate points lifted ``height_mm`` above the wells' floors (negative: below them), in
+    the floor's plate coordinates, and the scale of lengths there (about the camera's axis)."""
+    towards = height_mm if scene.camera.from_below else -height_mm  # further from a camera below the plate
+    scale = scene.camera.distance_mm / (scene.camera.distance_mm + towards)
+    principal = np.array(view.principal_mm)
+    return points_mm + (points_mm - principal) * (scale - 1.0), scale
+
+
 def wells_in_view(scene: Scene, view: View) -> tuple[list[Well], np.ndarray, float]:
     """The scene's wells in plate row-major order, the centres of their walls' top edges as the camera sees them
     (with parallax about its axis) and the top edges' radius."""
     plate = scene.plate
     wells = appearance.wells_by_grid(scene)
-    depth = plate.well_depth_mm if scene.camera.from_below else -plate.well_depth_mm
-    parallax = scene.camera.distance_mm / (scene.camera.distance_mm + depth)
-    principal = np.array(view.principal_mm)
     centres = np.array([w.center_mm for w in wells], dtype=np.float64)
-    top_centres = principal + (centres - principal) * parallax
-    top_radius = (plate.well_radius_mm + TOP_EDGE_OFFSET_MM) * parallax
-    return wells, top_centres, top_radius
+    top_centres, scale = parallax(scene, view, plate.well_depth_mm, centres)
+    return wells, top_centres, (plate.well_radius_mm + TOP_EDGE_OFFSET_MM) * scale
 
 
-def _frame(scene: Scene, view: View, top_radius: float) -> np.ndarray:
+def _frame(scene: Scene, view: View, top_radius: float, foot_scale: float) -> np.ndarray:
     """The per-image scalars of :func:`platesynth.render.shading.shade`."""
     plate, look, bg, light = scene.plate, scene.plate_look, scene.background, scene.lighting
     frame = np.zeros(1, dtype=shading.FRAME_DTYPE)
@@ -129,7 +134,7 @@ def _frame(scene: Scene, view: View, top_radius: float) -> np.ndarray:
         pixel_mm=1.0 / view.px_per_mm, mirror=view.mirror, length=plate.length_mm, plate_width=plate.width_mm,
         corner=plate.corner_radius_mm, chamfer=plate.chamfer_mm, skirt=plate.skirt_mm, a1x=plate.a1_x_mm,
         a1y=plate.a1_y_mm, pitch=plate.pitch_mm, rows=plate.rows, cols=plate.cols, radius=plate.well_radius_mm,
-        wall=plate.wall_mm, top_radius=top_radius, from_below=scene.camera.from_below,
+        wall=plate.wall_mm, top_radius=top_radius, foot_scale=foot_scale, from_below=scene.camera.from_below,
         transmittance=look.transmittance, rim_darkness=look.rim_darkness, label_strength=look.label_strength,
         top_edge_through_floor=look.top_edge_through_floor, wall_band=look.wall_band,
         tint_r=look.tint_rgb[0], tint_g=look.tint_rgb[1], tint_b=look.tint_rgb[2], is_desk=bg.kind == "desk",
@@ -169,6 +174,8 @@ def render_raster(scene: Scene, size: tuple[int, int] = (1024, 768)) -> RenderRe
     bg = scene.background
     textures = scene_textures(scene)
     wells, top_centres, top_radius = wells_in_view(scene, view)
+    centres = np.array([w.center_mm for w in wells], dtype=np.float64)
+    foot_centres, foot_scale = parallax(scene, view, -scene.plate_look.floor_height_mm, centres)
     content = appearance.draw_well_content(scene, view, wells, top_centres, top_radius, textures)
 
     desk_cell_px = DESK_CELL_MM * view.px_per_mm
@@ -180,9 +187,9 @@ def render_raster(scene: Scene, size: tuple[int, int] = (1024, 768)) -> RenderRe
     image = np.empty((height, width, 3), dtype=np.float32)
     wells_mask = np.zeros((height, width), dtype=np.uint8)
     shading.shade(
-        view.px_to_plate, _frame(scene, view, top_radius), np.asarray(srgb_to_linear(bg.color_rgb)),
+        view.px_to_plate, _frame(scene, view, top_radius, foot_scale), np.asarray(srgb_to_linear(bg.color_rgb)),
         np.asarray(bg.panel_mm, dtype=np.float64), blots,
-        appearance.well_table(wells, top_centres, textures.well_offsets), appearance.stain_table(scene, textures),
+        appearance.well_table(wells, top_centres, foot_centres, textures.well_offsets), appearance.stain_table(scene, textures),
         plate_relief(scene.plate, k), marker_ink(scene, k), k, textures.low_grid,
         appearance.fibre_grid_or_empty(textures), desk_grid, desk_cell_px, textures.fine_tile,
         textures.mottle_tile, textures.residual_tile, content.clearing, content.rim, content.scratched, content.specks, light_gains(scene),

@@ -53,6 +53,7 @@ FRAME_DTYPE = np.dtype(
         ("radius", np.float64),
         ("wall", np.float64),
         ("top_radius", np.float64),  # the walls' top edge, seen with parallax
+        ("foot_scale", np.float64),  # lengths at the walls' foot, seen with parallax, over those at the floor
         ("from_below", np.bool_),
         ("top_edge_through_floor", np.float64),  # share of the top edge's outlines seen through a floor
         ("transmittance", np.float64),  # the plastic between the wells
@@ -129,19 +130,25 @@ def plate_signed_distance(u, v, f):
 
 
 @njit(cache=True, nogil=True, inline="always")
-def plastic(dist, top_dist, disc, signed, relief, f):
+def plastic(foot_dist, top_dist, disc, signed, relief, f):
     """Share of the light the plastic passes: the floor or the deck, the walls' band and outlines, the embossing
-    (``relief``) and the skirt; ``disc`` is the pixel's coverage by the well's floor. Seen from below, the walls'
-    top edge lies behind the floor: only ``top_edge_through_floor`` of its outlines shows through it."""
+    (``relief``) and the skirt; ``disc`` is the pixel's coverage by the well's floor, ``foot_dist`` its distance from
+    the centre of the walls' foot as the camera sees it. Where the foot's opening shows no floor, the camera sees
+    the inside of the wall below the floor: it takes the band's brightness. Seen from below, the walls' top edge
+    lies behind the floor: only ``top_edge_through_floor`` of its outlines shows through it."""
     behind_layer = 1.0 - disc * (1.0 - f.top_edge_through_floor) if f.from_below else 1.0
     line_half = 0.5 * OUTLINE_WIDTH_MM
+    foot_radius = f.radius * f.foot_scale
+    foot_outer = (f.radius + f.wall) * f.foot_scale
     outlines = (
-        OUTLINE_WEIGHTS[0] * ring(dist, f.radius, line_half, f.pixel_mm)
-        + OUTLINE_WEIGHTS[1] * ring(dist, f.radius + f.wall, line_half, f.pixel_mm)
+        OUTLINE_WEIGHTS[0] * ring(foot_dist, foot_radius, line_half, f.pixel_mm)
+        + OUTLINE_WEIGHTS[1] * ring(foot_dist, foot_outer, line_half, f.pixel_mm)
         + behind_layer * (OUTLINE_WEIGHTS[2] * ring(top_dist, f.top_radius, line_half, f.pixel_mm)
                           + OUTLINE_WEIGHTS[3] * ring(top_dist, f.top_radius + f.wall, line_half, f.pixel_mm))
     )
-    band = 1.0 if f.radius < dist < f.radius + f.wall else 0.0
+    band = 1.0 if foot_radius < foot_dist < foot_outer else 0.0
+    # the foot's opening minus the floor: none where the foot lies at the floor's height
+    band += max(clip01((foot_radius - foot_dist) / f.pixel_mm + 0.5) - disc, 0.0)
     skirt_shade = 1.0 - SKIRT_DARKENING * clip01((signed + f.skirt) / f.skirt)
     # the thick plastic between the wells passes less light than a well's thin bottom
     passing = (f.transmittance * (1.0 - disc) + FLOOR_TRANSMITTANCE * disc) * (
@@ -241,11 +248,14 @@ def shade(
                 tu = u - well.top_cx
                 tv = v - well.top_cy
                 top_dist = math.sqrt(tu * tu + tv * tv)
+                fu = u - well.foot_cx
+                fv = v - well.foot_cy
+                foot_dist = math.sqrt(fu * fu + fv * fv)
                 if dist < f.radius and (f.from_below or top_dist < f.top_radius):
                     wells_mask[y, x] = np.uint8(well.id)
                 disc = clip01((f.radius - dist) / f.pixel_mm + 0.5)
                 relief, ink_r, ink_g, ink_b = relief_and_ink(u, v, texels_per_mm, relief_map, ink, f.label_strength)
-                passing = plastic(dist, top_dist, disc, signed, relief, f)
+                passing = plastic(foot_dist, top_dist, disc, signed, relief, f)
                 blot_r, blot_g, blot_b = blot_filter(u, v, blots, low_grid, st.unevenness_cell_mm)
                 # the stained monolayer: the appearance model, over the pixel's coverage by the floor
                 layer_r = 1.0

@@ -61,6 +61,11 @@ class PlateConfig(Section):
                                           "below (an arc across the monolayer where parallax puts the edge)")
     wall_band: Dist = number(0.04, -0.3, 0.3, "", "how much brighter the plate looks over a well's wall, seen end-on, "
                              "than over the plastic around it (negative: darker)")
+    floor_height_mm: Dist = number(0.0, 0.0, 5.0, "mm",
+                                   "height of the wells' floors above the foot of their walls (the plate's bottom "
+                                   "edge): seen from below the foot is nearer the camera than the floor, so parallax "
+                                   "shifts the walls' band and outlines outward from the monolayer, widest on the "
+                                   "side away from the camera's axis")
 
 
 class CameraConfig(Section):

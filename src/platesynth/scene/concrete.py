@@ -62,6 +62,8 @@ class PlateLook(_Concrete):
         0.0, description="share of the walls' top-edge outlines seen through a well's floor from below, 0..1")
     wall_band: float = Field(
         0.04, description="relative brightness of the plate over a well's wall, seen end-on (negative: darker)")
+    floor_height_mm: float = Field(
+        0.0, description="height of the wells' floors above the foot of their walls, mm (parallax of the foot)")
 
 
 class Stain(_Concrete):

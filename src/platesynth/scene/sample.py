@@ -147,6 +147,7 @@ def sample_scene(config: SceneConfig, seed: int) -> Scene:
         label_strength=c.plate.draw("label_strength", rng),
         top_edge_through_floor=c.plate.draw("top_edge_through_floor", rng),
         wall_band=c.plate.draw("wall_band", scene_rng(seed, "plate_walls")),  # beside the main order
+        floor_height_mm=c.plate.draw("floor_height_mm", scene_rng(seed, "plate_floor")),
     )
 
     tilt = c.camera.draw("tilt_deg", rng)

@@ -148,11 +148,14 @@ def _rims(
 ) -> None:
     """What the raster renderer draws of the walls, as films (image pass only): a band over the wall's thickness
     (``plate_look.wall_band`` brighter), and thin dark outlines at the wall's foot (radius, radius + wall) and top edge
-    (``TOP_EDGE_OFFSET_MM`` further out, + wall) at their heights. Seen from below, all but the plate look's
+    (``TOP_EDGE_OFFSET_MM`` further out, + wall) at their heights. The foot lies ``plate_look.floor_height_mm``
+    below the floors; where its opening shows no floor, the inside of the wall below the floor takes the band's
+    brightness (a disc at the foot, hidden where the ray passes a floor). Seen from below, all but the plate look's
     ``top_edge_through_floor`` of the top edge's outlines is hidden where the ray has passed a well's floor (the
     raster renderer's ``behind_layer``)."""
     plate_data = scene_data["plate"]
     radius, wall, depth = (float(plate_data[k]) for k in ("well_radius_mm", "wall_mm", "well_depth_mm"))
+    foot = -float(scene_data["plate_look"]["floor_height_mm"])
     darkness = float(scene_data["plate_look"]["rim_darkness"])
     from_below = float(view["toward_camera"]) < 0
     hidden_by_floor = (1.0 - float(scene_data["plate_look"]["top_edge_through_floor"])) if from_below else 0.0
@@ -162,13 +165,16 @@ def _rims(
     top = radius + TOP_EDGE_OFFSET_MM
     # just behind the floors' film, each ring at its own height: overlapping films must not coincide
     step = -float(view["toward_camera"]) * 0.05
+    band = 1.0 + float(scene_data["plate_look"]["wall_band"])
     rings = [  # inner radius, outer radius, height, colour, share hidden behind the floors
-        (radius, radius + wall, step, 1.0 + float(scene_data["plate_look"]["wall_band"]), 0.0),
-        (radius - line / 2, radius + line / 2, 2 * step, 1.0 - foot_inner * darkness, 0.0),
-        (radius + wall - line / 2, radius + wall + line / 2, 3 * step, 1.0 - foot_outer * darkness, 0.0),
+        (radius, radius + wall, foot + step, band, 0.0),
+        (radius - line / 2, radius + line / 2, foot + 2 * step, 1.0 - foot_inner * darkness, 0.0),
+        (radius + wall - line / 2, radius + wall + line / 2, foot + 3 * step, 1.0 - foot_outer * darkness, 0.0),
         (top - line / 2, top + line / 2, depth - 0.05, 1.0 - top_inner * darkness, hidden_by_floor),
         (top + wall - line / 2, top + wall + line / 2, depth - 0.05, 1.0 - top_outer * darkness, hidden_by_floor),
     ]
+    if foot < 0.0:  # the floor hides the disc's middle
+        rings.append((0.5 * radius, radius, foot + step, band, 1.0))
     n = len(centres)
     rims = geometry.annuli(
         "platesynth.rims",
