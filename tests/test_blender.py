@@ -388,3 +388,21 @@ def test_the_walls_foot_below_the_floor_is_the_raster_renderers(pool):
     assert abs(blender.mean() - raster.mean()) < 0.25 * raster.mean()
     assert np.abs(blender).mean() == pytest.approx(np.abs(raster).mean(), rel=0.3)  # 10.3 and 12.7 measured
     assert np.abs(change["blender"][~moved]).mean() < 0.3
+
+
+@needs_bpy
+def test_the_walls_tint_is_the_raster_renderers(pool):
+    """``plate.wall_stain`` tints the band over each wall by its well's stain as much in Blender (the band's film,
+    its ink times the well's tint) as in the raster renderer, channel by channel."""
+    size = (480, 360)
+    settings = {"plaques.negative_plate": 1.0, "wells.emptied": 0.0, "post.jpeg": 0.0,
+                "plate.top_edge_through_floor": 0.0}
+    plain, tinted = (sample_scene(load_config("high", overrides=settings | {"plate.wall_stain": share}), 6)
+                     for share in (0.0, 0.05))
+    band = wall_band(tinted, size)
+    ratio = {}
+    for name, draw in (("raster", render_raster), ("blender", lambda s, z: render_blender(s, z, samples=SAMPLES, pool=pool))):
+        before, after = (draw(scene, size).image[band].astype(np.float64).mean(axis=0) for scene in (plain, tinted))
+        ratio[name] = after / before
+    assert ratio["raster"][1] < 0.93 and ratio["raster"][2] > 0.97, ratio  # green darkens, blue hardly
+    np.testing.assert_allclose(ratio["blender"], ratio["raster"], atol=0.015)

@@ -9,9 +9,12 @@ from _geometry import distance_to_top_edges, pixel_centres_mm, wall_band
 from platesynth.errors import ParameterError, ShapeMismatchError
 from platesynth.render import postprocess as pp
 from platesynth.render import render
+from platesynth.render.appearance import stain_table, wall_tints
+from platesynth.render.color import srgb_to_linear
 from platesynth.render.masks import clean_isolated_pixels
 from platesynth.render.raster import camera_view, parallax, render_raster, wells_in_view
 from platesynth.render.result import plaque_counts
+from platesynth.render.textures import scene_textures
 from platesynth.scene import Scene, load_config, sample_scene
 from platesynth.scene.concrete import Plaque
 
@@ -296,3 +299,29 @@ def test_the_walls_foot_below_the_floor_shifts_the_band_outward():
     assert brighter[gained].mean() > 15.0  # levels: the band is 30 % brighter in linear light
     assert brighter[lost].mean() < -15.0
     assert np.array_equal(before.image[~near], after.image[~near])
+
+
+def test_the_band_over_each_wall_takes_its_wells_stain_as_asked():
+    """``plate.wall_stain`` tints the band over each wall by its well's layer: the light there is multiplied by the
+    layer's transmittance at the well's density raised to that share, channel by channel (in linear light), and
+    nothing else changes."""
+    size = (640, 480)
+    settings = {"plaques.negative_plate": 1.0, "wells.emptied": 0.0, "post.jpeg": 0.0, "post.clarity": 0.0,
+                "post.bloom": 0.0, "post.noise": 0.0, "post.sharpen": 0.0, "plate.top_edge_through_floor": 0.0}
+    plain, tinted = (small_scene("high", 6, **settings, **{"plate.wall_stain": share}) for share in (0.0, 0.05))
+    before, after = render(plain, size), render(tinted, size)
+    assert np.array_equal(before.wells, after.wells)
+    view = camera_view(tinted, *size)
+    wells, _, _ = wells_in_view(tinted, view)
+    tints = wall_tints(tinted, wells, stain_table(tinted, scene_textures(tinted))[0])
+    assert np.all(tints < 1.0) and tints[:, 1].max() < 0.85 and tints[:, 2].min() > 0.95  # a violet stain
+    u, v = pixel_centres_mm(view)
+    radius, wall = tinted.plate.well_radius_mm, tinted.plate.wall_mm
+    margin = 1.5 / view.px_per_mm
+    for well, tint in zip(wells, tints, strict=True):
+        off_centre = np.hypot(u - well.center_mm[0], v - well.center_mm[1])
+        band = (off_centre > radius + margin) & (off_centre < radius + wall - margin)
+        ratio = srgb_to_linear(after.image[band] / 255.0).mean(axis=0) / srgb_to_linear(before.image[band] / 255.0).mean(axis=0)
+        np.testing.assert_allclose(ratio, tint, atol=0.01)
+    away = ~wall_band(tinted, size, margin_px=-6.0)
+    assert np.array_equal(before.image[away], after.image[away])

@@ -116,6 +116,9 @@ WELL_DTYPE = np.dtype(
         ("top_cy", np.float64),
         ("foot_cx", np.float64),  # its wall's foot, below the floor, seen with parallax (mm)
         ("foot_cy", np.float64),
+        ("wall_r", np.float64),  # the linear RGB factor on the band over its wall (wall_tints)
+        ("wall_g", np.float64),
+        ("wall_b", np.float64),
         ("density", np.float64),
         ("centre_gradient", np.float64),
         ("centre_cos", np.float64),  # direction of the elongated centre
@@ -178,19 +181,33 @@ PLAQUE_DTYPE = np.dtype(
 """One row per plaque, in the scene's drawing order (:func:`plaque_table`)."""
 
 
-def well_table(wells: list[Well], top_centres: np.ndarray, foot_centres: np.ndarray, well_offsets: np.ndarray
-               ) -> np.ndarray:
+def well_table(wells: list[Well], top_centres: np.ndarray, foot_centres: np.ndarray, tints: np.ndarray,
+               well_offsets: np.ndarray) -> np.ndarray:
     """The :data:`WELL_DTYPE` rows of ``wells`` (plate row-major order), the centres of their walls' top edges and
-    feet, and their noise shifts."""
+    feet, the tints of their walls' bands (:func:`wall_tints`) and their noise shifts."""
     table = np.zeros(len(wells), dtype=WELL_DTYPE)
     for i, w in enumerate(wells):
         angle = math.radians(w.stain.centre_angle_deg)
         table[i] = (
-            w.id, *w.center_mm, *top_centres[i], *foot_centres[i], w.stain.density, w.stain.centre_gradient, math.cos(angle),
+            w.id, *w.center_mm, *top_centres[i], *foot_centres[i], *tints[i], w.stain.density, w.stain.centre_gradient, math.cos(angle),
             math.sin(angle), *w.stain.centre_offset_mm, w.stain.drying_detail, float(w.lysed), float(w.emptied),
             *well_offsets[i],
         )
     return table
+
+
+def wall_tints(scene: Scene, wells: list[Well], stain: np.ndarray) -> np.ndarray:
+    """Linear RGB factors ``(n, 3)`` on the band over each wall of ``wells``: the transmittance of its well's layer
+    at the well's density (a lysed well's times ``stain.lysed_density``, in the colour of what it keeps; none in an
+    emptied well), raised to ``plate_look.wall_stain``. ``stain`` is the :func:`stain_table` row."""
+    share = scene.plate_look.wall_stain
+    tints = np.ones((len(wells), 3))
+    if share > 0.0:
+        for i, well in enumerate(wells):
+            if not well.emptied:
+                density = well.stain.density * (stain["lysed_density"] if well.lysed else 1.0)
+                tints[i] = np.power(stain_transmittance(density, stain, float(well.lysed)), share)
+    return tints
 
 
 def stain_table(scene: Scene, textures: SceneTextures) -> np.ndarray:
@@ -664,7 +681,7 @@ def floor_transmittance(scene: Scene, texels_per_mm: float, textures: SceneTextu
     content = draw_well_content(scene, grid, wells, centres, plate.well_radius_mm, textures)
     out = np.empty((grid.height, grid.width, 3), dtype=np.float32)
     _bake_floor(1.0 / grid.px_per_mm, plate.a1_x_mm, plate.a1_y_mm, plate.pitch_mm, plate.rows, plate.cols,
-                plate.well_radius_mm, well_table(wells, centres, centres, textures.well_offsets), stain_table(scene, textures),
+                plate.well_radius_mm, well_table(wells, centres, centres, np.ones((len(wells), 3)), textures.well_offsets), stain_table(scene, textures),
                 textures.low_grid, fibre_grid_or_empty(textures), textures.fine_tile, textures.mottle_tile,
                 textures.residual_tile, content.clearing, content.rim, content.scratched, content.specks, out)
     return out

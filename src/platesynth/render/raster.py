@@ -176,6 +176,7 @@ def render_raster(scene: Scene, size: tuple[int, int] = (1024, 768)) -> RenderRe
     wells, top_centres, top_radius = wells_in_view(scene, view)
     centres = np.array([w.center_mm for w in wells], dtype=np.float64)
     foot_centres, foot_scale = parallax(scene, view, -scene.plate_look.floor_height_mm, centres)
+    stain = appearance.stain_table(scene, textures)
     content = appearance.draw_well_content(scene, view, wells, top_centres, top_radius, textures)
 
     desk_cell_px = DESK_CELL_MM * view.px_per_mm
@@ -189,7 +190,8 @@ def render_raster(scene: Scene, size: tuple[int, int] = (1024, 768)) -> RenderRe
     shading.shade(
         view.px_to_plate, _frame(scene, view, top_radius, foot_scale), np.asarray(srgb_to_linear(bg.color_rgb)),
         np.asarray(bg.panel_mm, dtype=np.float64), blots,
-        appearance.well_table(wells, top_centres, foot_centres, textures.well_offsets), appearance.stain_table(scene, textures),
+        appearance.well_table(wells, top_centres, foot_centres, appearance.wall_tints(scene, wells, stain[0]),
+                              textures.well_offsets), stain,
         plate_relief(scene.plate, k), marker_ink(scene, k), k, textures.low_grid,
         appearance.fibre_grid_or_empty(textures), desk_grid, desk_cell_px, textures.fine_tile,
         textures.mottle_tile, textures.residual_tile, content.clearing, content.rim, content.scratched, content.specks, light_gains(scene),

@@ -135,7 +135,8 @@ def plastic(foot_dist, top_dist, disc, signed, relief, f):
     (``relief``) and the skirt; ``disc`` is the pixel's coverage by the well's floor, ``foot_dist`` its distance from
     the centre of the walls' foot as the camera sees it. Where the foot's opening shows no floor, the camera sees
     the inside of the wall below the floor: it takes the band's brightness. Seen from below, the walls' top edge
-    lies behind the floor: only ``top_edge_through_floor`` of its outlines shows through it."""
+    lies behind the floor: only ``top_edge_through_floor`` of its outlines shows through it. Returns the share
+    passed and the pixel's coverage by the band (0..1)."""
     behind_layer = 1.0 - disc * (1.0 - f.top_edge_through_floor) if f.from_below else 1.0
     line_half = 0.5 * OUTLINE_WIDTH_MM
     foot_radius = f.radius * f.foot_scale
@@ -148,12 +149,12 @@ def plastic(foot_dist, top_dist, disc, signed, relief, f):
     )
     band = 1.0 if foot_radius < foot_dist < foot_outer else 0.0
     # the foot's opening minus the floor: none where the foot lies at the floor's height
-    band += max(clip01((foot_radius - foot_dist) / f.pixel_mm + 0.5) - disc, 0.0)
+    band = min(band + max(clip01((foot_radius - foot_dist) / f.pixel_mm + 0.5) - disc, 0.0), 1.0)
     skirt_shade = 1.0 - SKIRT_DARKENING * clip01((signed + f.skirt) / f.skirt)
     # the thick plastic between the wells passes less light than a well's thin bottom
     passing = (f.transmittance * (1.0 - disc) + FLOOR_TRANSMITTANCE * disc) * (
         1.0 + f.wall_band * band - f.rim_darkness * min(outlines, 1.0))
-    return passing * ((1.0 - relief) * skirt_shade)
+    return passing * ((1.0 - relief) * skirt_shade), band
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -255,7 +256,11 @@ def shade(
                     wells_mask[y, x] = np.uint8(well.id)
                 disc = clip01((f.radius - dist) / f.pixel_mm + 0.5)
                 relief, ink_r, ink_g, ink_b = relief_and_ink(u, v, texels_per_mm, relief_map, ink, f.label_strength)
-                passing = plastic(foot_dist, top_dist, disc, signed, relief, f)
+                passing, band = plastic(foot_dist, top_dist, disc, signed, relief, f)
+                # the band takes a share of its well's stain (a factor of 1 where the share is 0)
+                wall_r = 1.0 - band * (1.0 - well.wall_r)
+                wall_g = 1.0 - band * (1.0 - well.wall_g)
+                wall_b = 1.0 - band * (1.0 - well.wall_b)
                 blot_r, blot_g, blot_b = blot_filter(u, v, blots, low_grid, st.unevenness_cell_mm)
                 # the stained monolayer: the appearance model, over the pixel's coverage by the floor
                 layer_r = 1.0
@@ -278,9 +283,9 @@ def shade(
                     behind_r = rgb[0]
                     behind_g = rgb[1]
                     behind_b = rgb[2]
-                on_r = (behind_r * passing + f.sheen) * f.tint_r * ink_r * blot_r * layer_r
-                on_g = (behind_g * passing + f.sheen) * f.tint_g * ink_g * blot_g * layer_g
-                on_b = (behind_b * passing + f.sheen) * f.tint_b * ink_b * blot_b * layer_b
+                on_r = (behind_r * passing * wall_r + f.sheen) * f.tint_r * ink_r * blot_r * layer_r
+                on_g = (behind_g * passing * wall_g + f.sheen) * f.tint_g * ink_g * blot_g * layer_g
+                on_b = (behind_b * passing * wall_b + f.sheen) * f.tint_b * ink_b * blot_b * layer_b
                 rgb[0] = on_r * plate_alpha + rgb[0] * (1.0 - plate_alpha)
                 rgb[1] = on_g * plate_alpha + rgb[1] * (1.0 - plate_alpha)
                 rgb[2] = on_b * plate_alpha + rgb[2] * (1.0 - plate_alpha)

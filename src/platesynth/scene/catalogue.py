@@ -66,6 +66,9 @@ class PlateConfig(Section):
                                    "edge): seen from below the foot is nearer the camera than the floor, so parallax "
                                    "shifts the walls' band and outlines outward from the monolayer, widest on the "
                                    "side away from the camera's axis")
+    wall_stain: Dist = number(0.0, 0.0, 0.2, "",
+                              "share of its well's stain the band over a wall takes: light that passed the stained "
+                              "floor and is refracted into the wall, seen end-on (a stain-tinted ring around each well)")
 
 
 class CameraConfig(Section):

@@ -64,6 +64,7 @@ class PlateLook(_Concrete):
         0.04, description="relative brightness of the plate over a well's wall, seen end-on (negative: darker)")
     floor_height_mm: float = Field(
         0.0, description="height of the wells' floors above the foot of their walls, mm (parallax of the foot)")
+    wall_stain: float = Field(0.0, description="share of its well's stain the band over a wall takes, 0..1")
 
 
 class Stain(_Concrete):

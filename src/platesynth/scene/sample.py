@@ -148,6 +148,7 @@ def sample_scene(config: SceneConfig, seed: int) -> Scene:
         top_edge_through_floor=c.plate.draw("top_edge_through_floor", rng),
         wall_band=c.plate.draw("wall_band", scene_rng(seed, "plate_walls")),  # beside the main order
         floor_height_mm=c.plate.draw("floor_height_mm", scene_rng(seed, "plate_floor")),
+        wall_stain=c.plate.draw("wall_stain", scene_rng(seed, "wall_stain")),
     )
 
     tilt = c.camera.draw("tilt_deg", rng)

@@ -26,11 +26,11 @@ from typing import Any
 import numpy as np
 
 from platesynth.errors import RenderError
-from platesynth.render.appearance import floor_texels_per_mm, floor_transmittance
+from platesynth.render.appearance import floor_texels_per_mm, floor_transmittance, stain_table, wall_tints
 from platesynth.render.camera import REFERENCE_WIDTH, View, camera_view
 from platesynth.render.color import light_colour, srgb_to_linear
 from platesynth.render.raster import plate_relief, texels_per_mm
-from platesynth.render.textures import scene_textures
+from platesynth.render.textures import SceneTextures, scene_textures
 from platesynth.scene.concrete import Scene
 
 SENSOR_WIDTH_MM = 36.0
@@ -95,9 +95,10 @@ def describe_scene(scene: Scene, size: tuple[int, int], texture_dir: str | Path)
     gains = light_colour(scene.lighting.color_temperature_k)
     # what the plate rests on: its bottom sheet (seen from above) or its top (seen from below, upside down)
     support_z = plate.height_mm - FLOOR_THICKNESS_MM + 0.01 if from_below else -FLOOR_THICKNESS_MM - 0.01
+    noise = scene_textures(scene)
     return {
         "scene": scene.model_dump(mode="json"),
-        "textures": _write_textures(scene, view, Path(texture_dir)),
+        "textures": _write_textures(scene, view, noise, Path(texture_dir)),
         "view": {
             "width": width,
             "height": height,
@@ -117,13 +118,15 @@ def describe_scene(scene: Scene, size: tuple[int, int], texture_dir: str | Path)
             "marker_linear_rgb": [srgb_to_linear(s.color_rgb).tolist() for s in scene.artifacts.marker],
             "px_scale": width / REFERENCE_WIDTH,
             "pixel_mm": 1.0 / view.px_per_mm,
+            # the band over each wall (scene.wells' order): the raster renderer's linear factors
+            "wall_tints": wall_tints(scene, list(scene.wells), stain_table(scene, noise)[0]).tolist(),
         },
     }
 
 
-def _write_textures(scene: Scene, view: View, directory: Path) -> dict[str, dict[str, Any]]:
-    """Save the plate-space textures of ``scene`` in ``directory``; return their entries for the description."""
-    noise = scene_textures(scene)
+def _write_textures(scene: Scene, view: View, noise: SceneTextures, directory: Path) -> dict[str, dict[str, Any]]:
+    """Save the plate-space textures of ``scene`` (its noise textures ``noise``) in ``directory``; return their
+    entries for the description."""
     floor_k = floor_texels_per_mm(view.px_per_mm)
     relief_k = texels_per_mm(view.px_per_mm)
     arrays = {

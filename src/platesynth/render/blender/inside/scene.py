@@ -152,7 +152,7 @@ def _rims(
     below the floors; where its opening shows no floor, the inside of the wall below the floor takes the band's
     brightness (a disc at the foot, hidden where the ray passes a floor). Seen from below, all but the plate look's
     ``top_edge_through_floor`` of the top edge's outlines is hidden where the ray has passed a well's floor (the
-    raster renderer's ``behind_layer``)."""
+    raster renderer's ``behind_layer``). The band and the disc take their well's tint (``view["wall_tints"]``)."""
     plate_data = scene_data["plate"]
     radius, wall, depth = (float(plate_data[k]) for k in ("well_radius_mm", "wall_mm", "well_depth_mm"))
     foot = -float(scene_data["plate_look"]["floor_height_mm"])
@@ -166,16 +166,18 @@ def _rims(
     # just behind the floors' film, each ring at its own height: overlapping films must not coincide
     step = -float(view["toward_camera"]) * 0.05
     band = 1.0 + float(scene_data["plate_look"]["wall_band"])
-    rings = [  # inner radius, outer radius, height, colour, share hidden behind the floors
-        (radius, radius + wall, foot + step, band, 0.0),
-        (radius - line / 2, radius + line / 2, foot + 2 * step, 1.0 - foot_inner * darkness, 0.0),
-        (radius + wall - line / 2, radius + wall + line / 2, foot + 3 * step, 1.0 - foot_outer * darkness, 0.0),
-        (top - line / 2, top + line / 2, depth - 0.05, 1.0 - top_inner * darkness, hidden_by_floor),
-        (top + wall - line / 2, top + wall + line / 2, depth - 0.05, 1.0 - top_outer * darkness, hidden_by_floor),
+    rings = [  # inner radius, outer radius, height, colour, share hidden behind the floors, tinted by the well
+        (radius, radius + wall, foot + step, band, 0.0, True),
+        (radius - line / 2, radius + line / 2, foot + 2 * step, 1.0 - foot_inner * darkness, 0.0, False),
+        (radius + wall - line / 2, radius + wall + line / 2, foot + 3 * step, 1.0 - foot_outer * darkness, 0.0, False),
+        (top - line / 2, top + line / 2, depth - 0.05, 1.0 - top_inner * darkness, hidden_by_floor, False),
+        (top + wall - line / 2, top + wall + line / 2, depth - 0.05, 1.0 - top_outer * darkness, hidden_by_floor, False),
     ]
     if foot < 0.0:  # the floor hides the disc's middle
-        rings.append((0.5 * radius, radius, foot + step, band, 1.0))
+        rings.append((0.5 * radius, radius, foot + step, band, 1.0, True))
     n = len(centres)
+    tints = np.asarray(view["wall_tints"], dtype=np.float64)
+    inks = np.concatenate([r[3] * (tints if r[5] else np.ones((n, 3))) for r in rings])
     rims = geometry.annuli(
         "platesynth.rims",
         np.concatenate([centres] * len(rings)),
@@ -183,7 +185,7 @@ def _rims(
         np.repeat([r[1] for r in rings], n),
         np.repeat([r[2] for r in rings], n),
         {
-            "ink": np.repeat(np.array([[r[3]] * 3 for r in rings]), n, axis=0),
+            "ink": inks,
             "rim_center": _with_z(np.concatenate([centres] * len(rings)), 0.0),
             "rim_hidden_inside": np.repeat([r[4] for r in rings], n),
         },
