@@ -14,6 +14,11 @@ line contrast (the median over rays of the band's maximum minus minimum). Wells 
 
 And the deck's colour there (the light box seen through the plastic): red minus green and blue minus green, per image.
 
+And around each wall's circumference: the band's luminance (1.0 to 1.15 radii) averaged in each of 24 sectors; the
+sectors' standard deviation (how uneven the wall is around the well), and the first angular harmonic's amplitude
+along the well's outward direction, away from the image's centre (positive: brighter on the outward side), for the
+wells far from the image's centre (beyond 0.6 of its half-diagonal) and near it, in 8-bit levels.
+
 Run: ``python benchmarks/well_profile.py`` (``--preset P``, ``--images N``, ``--set name=value`` overrides).
 """
 
@@ -35,6 +40,10 @@ DECK = (1.3, 1.4)
 BAND = (1.0, 1.15)
 DIAGONALS_DEG = (45, 135, 225, 315)
 SPREAD_DEG = 12
+SECTORS = 24
+"""Sectors around a wall's circumference."""
+OFF_AXIS = 0.6
+"""A well beyond this share of the image's half-diagonal from its centre is an outer one."""
 """Rays every 3 degrees within this angle of each diagonal."""
 RINGS = (0.0, 0.3, 0.5, 0.7, 0.8, 0.85, 0.9, 0.93, 0.96)
 """Edges of the rings inside a plain well, in radii (the first ring is the centre the others are relative to)."""
@@ -104,6 +113,30 @@ def main(argv: list[str] | None = None) -> None:
         red, blue = (np.percentile(offsets[:, k], [10, 50, 90]).round().astype(int) for k in (0, 1))
         print(f"{label:24s} {len(offsets):6d}  red - green {red}  blue - green {blue}")
 
+    def around(luminance: np.ndarray, discs) -> np.ndarray:
+        """One row per well: its sectors' standard deviation over the band, the outward harmonic's amplitude and
+        its distance from the image's centre over the half-diagonal."""
+        height, width = luminance.shape
+        yy, xx = np.mgrid[:height, :width]
+        rows = []
+        for disc in discs:
+            dy, dx = yy - disc.cy, xx - disc.cx
+            in_band = (np.hypot(dy, dx) >= BAND[0] * disc.radius) & (np.hypot(dy, dx) <= BAND[1] * disc.radius)
+            angle = np.arctan2(dy[in_band], dx[in_band])
+            sector = ((angle + np.pi) / (2 * np.pi) * SECTORS).astype(int) % SECTORS
+            levels = np.bincount(sector, luminance[in_band], SECTORS) / np.bincount(sector, minlength=SECTORS)
+            centres = np.arange(SECTORS) * 2 * np.pi / SECTORS - np.pi + np.pi / SECTORS
+            outward = np.arctan2(disc.cy - height / 2, disc.cx - width / 2)
+            harmonic = 2 * np.mean((levels - levels.mean()) * np.cos(centres - outward))
+            off_axis = np.hypot(disc.cy - height / 2, disc.cx - width / 2) / np.hypot(height / 2, width / 2)
+            rows.append((levels.std(), harmonic, off_axis))
+        return np.array(rows)
+
+    def report_around(label: str, wells: np.ndarray) -> None:
+        outer, inner = wells[:, 2] > OFF_AXIS, wells[:, 2] <= OFF_AXIS
+        print(f"{label:24s} {len(wells):6d}  unevenness {np.median(wells[:, 0]):5.2f}  outward harmonic: outer wells "
+              f"{np.median(wells[outer, 1]):+5.2f}, inner {np.median(wells[inner, 1]):+5.2f}")
+
     @dataclass
     class Measured:
         """An image read or rendered once, and its wells found once (the plate grid fitted to it)."""
@@ -153,6 +186,11 @@ def main(argv: list[str] | None = None) -> None:
           "radii: 10th, 50th, 90th percentiles")
     for name, measured in sets:
         report_deck(name, np.array([deck_colour(m.image, m.discs) for m in measured]))
+
+    print(f"\n{'walls around, of':24s} {'wells':>6s}  the band's {SECTORS} sectors: standard deviation, first harmonic "
+          f"along the outward direction (8-bit levels; outer wells beyond {OFF_AXIS} of the half-diagonal)")
+    for name, measured in sets:
+        report_around(name, np.concatenate([around(m.luminance, m.discs) for m in measured]))
 
 if __name__ == "__main__":
     main()
