@@ -44,7 +44,7 @@ def test_presets_load_and_sample_json_roundtrip(preset):
 # here changes every dataset rendered from these presets). Update only for a deliberate change of the sampling.
 SCENE_SHA256_SEED3 = {
     "diverse": "2677090f01f3fa357bb8ba71811efa5ab264f7fbbf7a514a5c15434e7beb4944",
-    "high": "87f87ac0527e80834eb7801893ea0258fea9b7378dbb3e5ef3cfd0bf0808011f",
+    "high": "c27d6bf8ce2992aa6f64766b121006a743381ee033176dab5be0326cc09024c4",
     "lightbox12": "86ba5960e2ea611e8aa959f939abf1682b6392fbb824935670b616df145ad1a7",
     "low": "9c1624a289dd1a926c64b6a61357700b47a52412d7103f44357a58dc323c98bf",
     "medium": "a88e7ed052af69c0464555cc8f36b8d8396a8cd71631915eb7bd8dfb50d8251d",
@@ -400,3 +400,29 @@ def test_a_parameter_added_later_is_drawn_beside_the_others(part, drawn, fixed):
             assert getattr(getattr(constant, part), name.split(".")[1]) == value
         same = constant.model_copy(update={part: getattr(constant, part).model_copy(update=values)})
         assert same == varied  # its own random stream: every other draw of the scene stays as it was
+
+
+def test_pipette_scratches_tilt_and_start_inside_the_rim_as_drawn():
+    """``artifacts.pipette_tilt_deg`` turns each pipette scratch off its well's radius and ``pipette_inset_mm``
+    starts it that far inside the rim (at 1.02 radii without); both come from a stream of their own, so every other
+    draw of the scene, the scratches' widths included, stays as it was."""
+    straight = {"artifacts.extra_scratches": 0.0, "artifacts.pipette_bend": 0.0, "artifacts.pipette_scratch": 1.0,
+                "artifacts.pipette_tilt_deg": 0.0, "artifacts.pipette_inset_mm": 0.0}
+    turned = straight | {"artifacts.pipette_tilt_deg": 20.0, "artifacts.pipette_inset_mm": 0.5}
+    for seed in range(3):
+        before, after = (sample_scene(load_config("high", overrides=o), seed) for o in (straight, turned))
+        assert before.model_copy(update={"artifacts": before.artifacts.model_copy(update={"scratches": []})}) == \
+            after.model_copy(update={"artifacts": after.artifacts.model_copy(update={"scratches": []})})
+        centres = {w.id: np.array(w.center_mm) for w in after.wells}
+        radius = after.plate.well_radius_mm
+        assert len(after.artifacts.scratches) == len(before.artifacts.scratches) > 0
+        for old, new in zip(before.artifacts.scratches, after.artifacts.scratches, strict=True):
+            assert new.width_mm == old.width_mm
+            centre = centres[new.well]
+            start, second = np.array(new.points_mm[0]), np.array(new.points_mm[1])
+            old_start = np.array(old.points_mm[0])
+            assert np.linalg.norm(old_start - centre) == pytest.approx(1.02 * radius, abs=1e-3)  # points kept to 0.1 um
+            assert np.linalg.norm(start - centre) == pytest.approx(1.02 * radius - 0.5, abs=1e-3)
+            inward, along = centre - start, second - start
+            cosine = inward @ along / (np.linalg.norm(inward) * np.linalg.norm(along))
+            assert np.degrees(np.arccos(cosine)) == pytest.approx(20.0, abs=0.1)

@@ -201,6 +201,10 @@ class ArtifactsConfig(Section):
     pipette_width_factor: Dist = number([0.8, 1.2], 0.0, 5.0, "", "each pipette scratch's factor on scratch_width_mm")
     pipette_bend: Dist = number({"normal": [0.0, 0.35]}, -5.0, 5.0, "",
                                 "each pipette scratch's sideways bend at its end (a hook), fraction of its length")
+    pipette_tilt_deg: Dist = number(0.0, -60.0, 60.0, "deg",
+                                    "each pipette scratch's direction off the well's radius (drawn per scratch)")
+    pipette_inset_mm: Dist = number(0.0, 0.0, 3.0, "mm",
+                                    "how far inside the rim each pipette scratch starts (drawn per scratch)")
     extra_scratches: Dist = number([0.0, 0.3], 0.0, 10.0, "per well", "mean number of other scratches per well")
     scratch_length_factor: Dist = number([0.3, 1.0], 0.0, 5.0, "", "each other scratch's factor on scratch_length_mm")
     scratch_width_factor: Dist = number([0.5, 1.0], 0.0, 5.0, "", "each other scratch's factor on scratch_width_mm")

@@ -236,6 +236,7 @@ def sample_scene(config: SceneConfig, seed: int) -> Scene:
     wells: list[Well] = []
     plaques: list[Plaque] = []
     scratches: list[Scratch] = []
+    pipette_pose = scene_rng(seed, "pipette_pose")
     debris: list[Debris] = []
     scratch_length = c.artifacts.draw("scratch_length_mm", rng)
     scratch_width = c.artifacts.draw("scratch_width_mm", rng)
@@ -283,7 +284,8 @@ def sample_scene(config: SceneConfig, seed: int) -> Scene:
                 )
             )
             if a.draw("pipette_scratch", rng):
-                scratches.append(_pipette_scratch(rng, a, well_id, center, radius, scratch_length, scratch_width))
+                scratches.append(_pipette_scratch(rng, pipette_pose, a, well_id, center, radius, scratch_length,
+                                                  scratch_width))
             for _ in range(int(rng.poisson(extra_scratches))):
                 start = center + _in_disc(rng, radius * SCRATCH_REACH)
                 stroke = _smooth_stroke(rng, start, a.draw("scratch_length_factor", rng) * scratch_length, n_points=4)
@@ -437,6 +439,7 @@ def _shrink_crowded(plaques: list[Plaque], max_coverage: float, well_radius: flo
 
 def _pipette_scratch(
     rng: np.random.Generator,
+    pose: np.random.Generator,
     section: ArtifactsConfig,
     well_id: int,
     center: np.ndarray,
@@ -444,15 +447,18 @@ def _pipette_scratch(
     length: float,
     width: float,
 ) -> Scratch:
-    """The short hook-shaped streak where the pipette tip touched the layer, at the top of the well."""
+    """The short hook-shaped streak where the pipette tip touched the layer, at the top of the well; its tilt off
+    the radius and its start's inset from the rim come from ``pose``, a random stream of their own."""
     angle = rng.normal(0.0, PIPETTE_ANGLE_SD)
-    start = center + radius * 1.02 * np.array([math.sin(angle), -math.cos(angle)])
+    tilt = math.radians(section.draw("pipette_tilt_deg", pose))
+    inward = np.array([-math.sin(angle), math.cos(angle)])
+    start = center - (radius * 1.02 - section.draw("pipette_inset_mm", pose)) * inward
     length *= section.draw("pipette_length_factor", rng)
     bend = section.draw("pipette_bend", rng)
     t = np.linspace(0.0, 1.0, 5)
     along = t * length
     side = bend * length * t**2
-    direction = np.array([-math.sin(angle), math.cos(angle)])
+    direction = np.array([-math.sin(angle + tilt), math.cos(angle + tilt)])
     normal = np.array([direction[1], -direction[0]])
     points = start + along[:, None] * direction + side[:, None] * normal
     return Scratch(
