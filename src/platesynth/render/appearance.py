@@ -189,9 +189,9 @@ def well_table(wells: list[Well], top_centres: np.ndarray, foot_centres: np.ndar
     for i, w in enumerate(wells):
         angle = math.radians(w.stain.centre_angle_deg)
         table[i] = (
-            w.id, *w.center_mm, *top_centres[i], *foot_centres[i], *tints[i], w.stain.density, w.stain.centre_gradient, math.cos(angle),
-            math.sin(angle), *w.stain.centre_offset_mm, w.stain.drying_detail, float(w.lysed), float(w.emptied),
-            *well_offsets[i],
+            w.id, *w.center_mm, *top_centres[i], *foot_centres[i], *tints[i], w.stain.density,
+            w.stain.centre_gradient, math.cos(angle), math.sin(angle), *w.stain.centre_offset_mm,
+            w.stain.drying_detail, float(w.lysed), float(w.emptied), *well_offsets[i],
         )
     return table
 
@@ -680,8 +680,10 @@ def floor_transmittance(scene: Scene, texels_per_mm: float, textures: SceneTextu
     # no parallax in plate space: the ids of this drawing are not used, only the clearing
     content = draw_well_content(scene, grid, wells, centres, plate.well_radius_mm, textures)
     out = np.empty((grid.height, grid.width, 3), dtype=np.float32)
+    untinted = np.ones((len(wells), 3))  # the floors only: the walls' bands are films of their own in Blender
     _bake_floor(1.0 / grid.px_per_mm, plate.a1_x_mm, plate.a1_y_mm, plate.pitch_mm, plate.rows, plate.cols,
-                plate.well_radius_mm, well_table(wells, centres, centres, np.ones((len(wells), 3)), textures.well_offsets), stain_table(scene, textures),
+                plate.well_radius_mm, well_table(wells, centres, centres, untinted, textures.well_offsets),
+                stain_table(scene, textures),
                 textures.low_grid, fibre_grid_or_empty(textures), textures.fine_tile, textures.mottle_tile,
                 textures.residual_tile, content.clearing, content.rim, content.scratched, content.specks, out)
     return out
