@@ -4,6 +4,9 @@ from __future__ import annotations
 
 import hashlib
 import json
+import os
+import subprocess
+import sys
 
 import numpy as np
 import pytest
@@ -426,3 +429,28 @@ def test_pipette_scratches_tilt_and_start_inside_the_rim_as_drawn():
             inward, along = centre - start, second - start
             cosine = inward @ along / (np.linalg.norm(inward) * np.linalg.norm(along))
             assert np.degrees(np.arccos(cosine)) == pytest.approx(20.0, abs=0.1)
+
+
+def _scene_hashes_in_subprocess(env: dict[str, str]) -> dict[str, str]:
+    code = (
+        "import hashlib, json\n"
+        "from platesynth.scene import list_presets, load_config, sample_scene\n"
+        "print(json.dumps({p: hashlib.sha256(sample_scene(load_config(p), 3).model_dump_json().encode()).hexdigest()"
+        " for p in list_presets()}))\n"
+    )
+    done = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, check=True)
+    return json.loads(done.stdout)
+
+
+def test_scenes_do_not_depend_on_the_cpus_vector_instructions():
+    """numpy picks its vectorised exp, log, power and hypot by the CPU (AVX-512 versions differ from the others in
+    the last bit), so the sampler draws its transcendental values with ``math``: a seed gives the same scene on every
+    x86-64 machine. Compared here: this process's numpy against one with the CPU's dispatched features beyond AVX2
+    switched off."""
+    from numpy.core._multiarray_umath import __cpu_dispatch__, __cpu_features__
+
+    beyond_avx2 = [name for name in __cpu_dispatch__ if name.startswith("AVX512") and __cpu_features__.get(name)]
+    if not beyond_avx2:
+        pytest.skip("this CPU has no AVX-512: numpy takes the same paths with or without the switch")
+    env = {**os.environ, "NPY_DISABLE_CPU_FEATURES": " ".join(beyond_avx2)}
+    assert _scene_hashes_in_subprocess(env) == _scene_hashes_in_subprocess(dict(os.environ)) == SCENE_SHA256_SEED3

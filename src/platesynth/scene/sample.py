@@ -243,7 +243,7 @@ def sample_scene(config: SceneConfig, seed: int) -> Scene:
     extra_scratches = c.artifacts.draw("extra_scratches", rng)
     debris_rate = c.artifacts.draw("debris", rng)
     radius = plate.well_radius_mm
-    harmonic_scale = irregularity / np.arange(2, N_HARMONICS + 2) ** harmonic_decay
+    harmonic_scale = irregularity / np.array([float(k) ** harmonic_decay for k in range(2, N_HARMONICS + 2)])
     a = c.artifacts
 
     for plate_row in range(plate.rows):
@@ -267,7 +267,7 @@ def sample_scene(config: SceneConfig, seed: int) -> Scene:
                     lysed=lysed,
                     expected_plaques=round(expected, 4),
                     stain=WellStain(
-                        density=density * float(np.exp(rng.normal(0.0, jitter))),
+                        density=density * math.exp(rng.normal(0.0, jitter)),
                         centre_gradient=centre_gradient * c.stain.draw("centre_gradient_factor", rng),
                         centre_angle_deg=rng.uniform(0, 180),
                         centre_offset_mm=_tuple2(rng.normal(0, centre_offset * radius, 2)),
@@ -392,7 +392,9 @@ def _sample_plaques(
     max_overlap: float,
 ) -> list[Plaque]:
     radii = np.clip(
-        median_radius * np.exp(rng.normal(0, radius_spread, count)), MIN_PLAQUE_RADIUS_MM, max_radius * well_radius
+        median_radius * np.array([math.exp(z) for z in rng.normal(0, radius_spread, count)]),
+        MIN_PLAQUE_RADIUS_MM,
+        max_radius * well_radius,
     )
     placed: list[tuple[np.ndarray, float]] = []
     out: list[Plaque] = []
@@ -400,7 +402,7 @@ def _sample_plaques(
         for _attempt in range(PLACEMENT_ATTEMPTS if max_overlap < 1.0 else 1):
             offset = _in_disc(rng, well_radius, edge_bias)
             if max_overlap >= 1.0 or all(
-                (radius + r - np.hypot(*(offset - o))) <= 2 * max_overlap * min(radius, r) for o, r in placed
+                (radius + r - math.hypot(*(offset - o))) <= 2 * max_overlap * min(radius, r) for o, r in placed
             ):
                 break
         else:
