@@ -272,8 +272,9 @@ def test_the_raster_renderer_draws_the_pale_lysed_colour(base_scene):
     np.testing.assert_allclose(usual.image[others].mean(axis=0), paler.image[others].mean(axis=0), atol=0.01)
 
 
-def scratch_widths(scene, roughness: float) -> np.ndarray:
-    """Width (mm) of the scraped band of one straight 4 mm scratch, along it in 0.05 mm steps."""
+def scratch_widths(scene, roughness: float) -> tuple[np.ndarray, np.ndarray]:
+    """Widths (mm) of the scraped band of one straight 4 mm scratch on either side of its centre line, along it in
+    0.05 mm steps."""
     well = scene.wells[5]
     x, y = well.center_mm
     scratch = Scratch(well=well.id, points_mm=((x, y - 2.0), (x, y), (x, y + 2.0)), width_mm=0.6)
@@ -284,14 +285,22 @@ def scratch_widths(scene, roughness: float) -> np.ndarray:
     centres = np.array([w.center_mm for w in wells])
     scraped = appearance.draw_well_content(scene, grid, wells, centres, 99.0, scene_textures(scene)).scratched
     rows = np.arange(int((y - 1.6) * TEXELS_PER_MM), int((y + 1.6) * TEXELS_PER_MM))
-    return (scraped[rows] / appearance.SCRATCH_CLEARING).sum(axis=1) / TEXELS_PER_MM
+    band = scraped[rows] / appearance.SCRATCH_CLEARING
+    centre = x * TEXELS_PER_MM  # texel j covers [j, j + 1) / TEXELS_PER_MM
+    columns = np.arange(band.shape[1])
+    left_share = np.clip(centre - columns, 0.0, 1.0)  # the share of each texel left of the centre line
+    return (band * left_share).sum(axis=1) / TEXELS_PER_MM, (band * (1.0 - left_share)).sum(axis=1) / TEXELS_PER_MM
 
 
-def test_scratch_roughness_varies_the_width_along_the_scratch(base_scene):
+def test_scratch_roughness_tears_each_edge_on_its_own(base_scene):
     scene, _ = base_scene
-    smooth = scratch_widths(scene, 0.0)
-    assert smooth == pytest.approx(0.6, abs=0.03)  # an even band of the scratch's width
-    ragged = scratch_widths(scene, 0.4)
-    # the two waves (weights 0.6 and 0.4) at 40 %: the width swings by up to +-0.24 mm about 0.6 mm, with its mean kept
-    assert ragged.min() < 0.5 and ragged.max() > 0.7 and ragged.max() < 0.6 * 1.4 + 0.05
-    assert ragged.mean() == pytest.approx(0.6, abs=0.06)
+    left, right = scratch_widths(scene, 0.0)
+    assert left + right == pytest.approx(0.6, abs=0.03)  # an even band of the scratch's width
+    assert left == pytest.approx(right, abs=0.03)
+    left, right = scratch_widths(scene, 0.4)
+    # each edge lies off the centre line by 0.3 mm, +-40 % at most, with its mean kept
+    for edge in (left, right):
+        assert edge.max() - edge.min() > 0.06 and edge.min() > 0.3 * 0.6 - 0.03 and edge.max() < 0.3 * 1.4 + 0.03
+        assert edge.mean() == pytest.approx(0.3, abs=0.05)
+    # a torn strip, not a chain of beads: the two edges swell and narrow apart
+    assert abs(np.corrcoef(left, right)[0, 1]) < 0.5

@@ -47,7 +47,7 @@ def test_presets_load_and_sample_json_roundtrip(preset):
 # here changes every dataset rendered from these presets). Update only for a deliberate change of the sampling.
 SCENE_SHA256_SEED3 = {
     "diverse": "2677090f01f3fa357bb8ba71811efa5ab264f7fbbf7a514a5c15434e7beb4944",
-    "high": "926feddee1ce6b681242e84e6eff07cb8fbf4627e1fa11f31933080ed886d2d9",
+    "high": "337dc6d8ff20d76e5a08014c11908279e2cdf6776bebc1c7c4cf76fffbf94fd9",
     "lightbox12": "86ba5960e2ea611e8aa959f939abf1682b6392fbb824935670b616df145ad1a7",
     "low": "9c1624a289dd1a926c64b6a61357700b47a52412d7103f44357a58dc323c98bf",
     "medium": "a88e7ed052af69c0464555cc8f36b8d8396a8cd71631915eb7bd8dfb50d8251d",

@@ -208,8 +208,9 @@ class ArtifactsConfig(Section):
     extra_scratches: Dist = number([0.0, 0.3], 0.0, 10.0, "per well", "mean number of other scratches per well")
     scratch_length_factor: Dist = number([0.3, 1.0], 0.0, 5.0, "", "each other scratch's factor on scratch_length_mm")
     scratch_width_factor: Dist = number([0.5, 1.0], 0.0, 5.0, "", "each other scratch's factor on scratch_width_mm")
-    scratch_roughness: Dist = number(0.0, 0.0, 0.9, "", "how ragged the plate's scratches are: their width varies "
-                                     "along them by up to this share (0: smooth, even strokes)")
+    scratch_roughness: Dist = number(0.0, 0.0, 0.9, "", "how ragged the plate's scratches are: each edge's distance "
+                                     "from the centre line varies along them, each edge on its own, by up to this "
+                                     "share (0: smooth, even strokes)")
     marker: float = probability(0.6, "chance of marker writing on the plate")
     marker_strokes: Dist = number({"integers": [1, 3]}, 1, 20, "strokes", "number of pen strokes", integer=True)
     marker_size_mm: Dist = number([3.0, 7.0], 0.5, 40.0, "mm", "length of a pen stroke (strokes stand 0.6 of it apart)")
