@@ -78,6 +78,34 @@ def test_fray_zero_gives_a_round_edge(base_scene):
     assert radii.max() - 1.0 < 0.08  # the half-clearing contour is the outline, within about a texel
 
 
+def outline_radii(scene, well, look: PlaqueLook) -> tuple[np.ndarray, np.ndarray]:
+    """The plaque's outline (its mask's boundary) and its half-clearing contour: the largest radius (mm) of each in
+    72 sectors around the centre."""
+    scene = scene.model_copy(update={"plaque_look": look})
+    grid = appearance.texel_grid(scene, TEXELS_PER_MM)
+    wells = appearance.wells_by_grid(scene)
+    centres = np.array([w.center_mm for w in wells])
+    content = appearance.draw_well_content(scene, grid, wells, centres, 99.0, scene_textures(scene))
+    radii = []
+    for region in (content.plaque_ids > 0, content.clearing > 0.5):
+        ys, xs = np.nonzero(region)
+        du, dv = (xs + 0.5) / TEXELS_PER_MM - well.center_mm[0], (ys + 0.5) / TEXELS_PER_MM - well.center_mm[1]
+        sector = ((np.arctan2(dv, du) + np.pi) / (2 * np.pi) * 72).astype(int) % 72
+        radii.append(np.array([np.hypot(du, dv)[sector == k].max() for k in range(72)]))
+    return radii[0], radii[1]
+
+
+def test_lumps_move_the_outline_and_its_mask_alike(base_scene):
+    scene, well = base_scene
+    mask, half = outline_radii(scene, well, PlaqueLook(fray=0.0))
+    assert mask.std() < 0.02 and half.std() < 0.02  # a round plaque of radius 1 mm
+    mask, half = outline_radii(scene, well, PlaqueLook(fray=0.0, lumps=0.1))
+    # lumps of 0.12 mm cells move the outline by 0.1 mm per sd of the noise, out and in around the plaque
+    assert 0.03 < mask.std() < 0.2 and mask.min() < 0.95 and mask.max() > 1.05
+    assert mask.mean() == pytest.approx(1.0, abs=0.1)
+    np.testing.assert_allclose(half, mask, atol=0.08)  # the mask is the clearing's outline, lumps and all
+
+
 def test_floor_texture_is_the_raster_renderers_stain(base_scene):
     """Blender's floor texture: the plaque's core passes far more light than the stain beside it, outside the
     wells the texture is clear."""

@@ -91,6 +91,11 @@ within this distance of the rim."""
 EDGE_SPAN = 1.5
 """A plaque's clearing falls from full to none over this many edge widths, centred on its outline; the fray noise
 (unit sd, times ``plaque_look.fray``) shifts that ramp."""
+LUMP_CELL_MM = 0.12
+"""Cell of the lumps on a plaque's outline (the fine tile read in plate millimetres, away from the drying texture's
+cell): crenellated, cauliflower-like edges whose lumps keep their size whatever the plaque's."""
+LUMP_TILE_OFFSET = 101.3
+"""The lumps read the fine tile this many cells away from where the drying texture reads it."""
 FRAY_ROWS_PER_PLAQUE = 7.37
 """Each plaque reads the fray tile this many rows further along, so that neighbours fray differently."""
 CORE_DIP_SHARPNESS = 3.0
@@ -360,14 +365,16 @@ def stain_transmittance(density, stain, lysed):
 
 
 @njit(cache=True, nogil=True)
-def draw_plaques(hinv, plaques, fourier, boxes, pixel_mm, from_below, top_radius, fuzz_tile, fray, centre_residual,
-                 halo, halo_width, rim, clear, rim_density, ids):
+def draw_plaques(hinv, plaques, fourier, boxes, pixel_mm, from_below, top_radius, fuzz_tile, fray, lumps,
+                 centre_residual, halo, halo_width, rim, clear, rim_density, ids):
     """Draw plaques in order (later ones on top).
 
     ``plaques``: :data:`PLAQUE_DTYPE` rows (mm); ``fourier[p, k] = (a, b)`` for harmonic ``k + 2``; ``fray``,
-    ``centre_residual``, ``halo``, ``halo_width`` and ``rim``: the plate's :class:`~platesynth.scene.PlaqueLook`.
-    ``clear`` (float32) receives the union of the plaques' clearing (0..1): a soft edge centred on the outline,
-    frayed by ``fuzz_tile`` noise, a paler centre and a soft halo outside; ``rim_density`` (float32) the largest
+    ``lumps``, ``centre_residual``, ``halo``, ``halo_width`` and ``rim``: the plate's
+    :class:`~platesynth.scene.PlaqueLook`. The outline is the Fourier shape moved out or in by ``lumps`` times the
+    radius times ``fuzz_tile`` noise read in plate millimetres (:data:`LUMP_CELL_MM`). ``clear`` (float32) receives
+    the union of the plaques' clearing (0..1): a soft edge centred on the outline, frayed by ``fuzz_tile`` noise
+    read around the plaque (radial fibres), a paler centre and a soft halo outside; ``rim_density`` (float32) the largest
     relative density added by a darker rim along an outline. ``ids`` (uint16) receives ``p + 1`` where the pixel
     centre lies inside plaque ``p``'s outline and inside the visible interior of its well.
     """
@@ -380,7 +387,7 @@ def draw_plaques(hinv, plaques, fourier, boxes, pixel_mm, from_below, top_radius
             amplitude += abs(fourier[p, k, 0]) + abs(fourier[p, k, 1])
         width = max(edge, pixel_mm)
         halo_mm = halo_width * radius
-        reach = radius * (1.0 + amplitude) + EDGE_SPAN * width
+        reach = radius * (1.0 + amplitude + 4.0 * lumps) + EDGE_SPAN * width
         if halo > 0.0:
             reach += 3.0 * halo_mm
         noise_dx = FRAY_ROWS_PER_PLAQUE * p
@@ -402,6 +409,9 @@ def draw_plaques(hinv, plaques, fourier, boxes, pixel_mm, from_below, top_radius
                     for k in range(n_harmonics):
                         outline += fourier[p, k, 0] * cos_k + fourier[p, k, 1] * sin_k
                         cos_k, sin_k = cos_k * cos1 - sin_k * sin1, sin_k * cos1 + cos_k * sin1
+                if lumps > 0.0:
+                    outline += lumps * tile_sample(fuzz_tile, u / LUMP_CELL_MM + LUMP_TILE_OFFSET,
+                                                   v / LUMP_CELL_MM + LUMP_TILE_OFFSET)
                 signed = dist - radius * outline
                 if signed < 0.0:
                     wu = u - plaque.well_cx
@@ -590,7 +600,7 @@ def draw_well_content(
         corners = centres[:, None, :] + signs[None] * reach[:, None, None]
         boxes = boxes_from_extents(grid.project(corners), grid.height, grid.width)
         draw_plaques(grid.px_to_plate, plaques, fourier, boxes, pixel_mm, scene.camera.from_below, top_radius,
-                     textures.fine_tile, look.fray, look.centre_residual, look.halo, look.halo_width, look.rim,
+                     textures.fine_tile, look.fray, look.lumps, look.centre_residual, look.halo, look.halo_width, look.rim,
                      content.clearing, content.rim, content.plaque_ids)
     art = scene.artifacts
     segments = []

@@ -185,6 +185,9 @@ class PlaquesConfig(Section):
     softness_factor: Dist = number([0.8, 1.25], 0.0, 5.0, "", "each plaque's factor on softness")
     clearness_factor: Dist = number([0.9, 1.1], 0.0, 5.0, "", "each plaque's factor on clearness (capped at 1)")
     fray: Dist = number(0.2, 0.0, 1.0, "", "how much radial fibres shift a plaque's edge (0: a smooth soft disc)")
+    lumps: Dist = number(0.0, 0.0, 0.3, "", "how far lumps of about a tenth of a millimetre move a plaque's outline out "
+                         "or in, share of its radius (crenellated, cauliflower-like edges; the plaque masks follow "
+                         "them; 0: the smooth Fourier outline)")
     centre_residual: Dist = number(0.02, 0.0, 0.9, "", "share of the clearing a plaque's centre lacks (paler centre)")
     halo: Dist = number(0.0, 0.0, 1.0, "", "clearing of the soft halo just outside a plaque's outline")
     halo_width: Dist = number(0.5, 0.01, 3.0, "", "reach of the halo beyond the outline, fraction of the radius")

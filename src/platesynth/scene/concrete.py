@@ -153,6 +153,8 @@ class PlaqueLook(_Concrete):
     """How the plate's plaques look (the defaults are the first model's look: frayed, fully cleared discs)."""
 
     fray: float = Field(0.2, description="how much radial fibres shift a plaque's edge, share of the edge's ramp")
+    lumps: float = Field(0.0, description="how far lumps move a plaque's outline out or in, share of its radius per sd "
+                         "of the noise (crenellated, cauliflower-like edges)")
     centre_residual: float = Field(0.02, description="share of the clearing a plaque's centre lacks (a paler, "
                                    "translucent centre)")
     halo: float = Field(0.0, description="clearing of the soft halo just outside a plaque's outline")

@@ -12,7 +12,8 @@ import numpy as np
 
 STREAMS = ("well_offsets", "unevenness", "fibres", "desk", "fine", "residual", "post", "mottle", "stain_palette",
            "lysed_palette", "scratch_edges", "lysed_disc",
-           "plate_walls", "lysed_clumps", "rim_band", "plate_floor", "wall_stain", "pipette_pose")
+           "plate_walls", "lysed_clumps", "rim_band", "plate_floor", "wall_stain", "pipette_pose",
+           "plaque_lumps")
 """The random streams of a scene's seed, in the order they are spawned (append new ones at the end)."""
 
 
