@@ -6,9 +6,12 @@ For every well, the median hue, saturation and value (HSV) of the pixels within 
 standard deviation, in 8-bit levels, of the luminance (the post-processing's weights) less its Gaussian blur of 1.5 px
 (a phone's smooth saturated wells have almost none, sensor noise and a sharpened texture have some). Real wells are
 found with the fitted plate grid (:func:`platesynth.metrics.fit_plate_grid`), synthetic ones with their true masks, raster
-renders at the photos' size. Prints the 10th, 50th and 90th percentiles per split and for the preset.
+renders at the photos' size. Prints the 10th, 50th and 90th percentiles per split and for the preset; with
+``--per-plate``, also the median over each plate's wells, photo by photo and render by render (the photos' plates
+fall into kinds: saturated wells with the green crushed to 0, and pale bluish ones).
 
-Run: ``python benchmarks/stain_colour.py`` (``--preset P``, ``--images N``, ``--set name=value`` overrides).
+Run: ``python benchmarks/stain_colour.py`` (``--preset P``, ``--images N``, ``--set name=value`` overrides,
+``--per-plate``).
 """
 
 from __future__ import annotations
@@ -32,6 +35,7 @@ def main(argv: list[str] | None = None) -> None:
     """Print the percentiles of the wells' median hue, saturation and value."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     add_preset_options(parser, images=12, seed=700)
+    parser.add_argument("--per-plate", action="store_true", help="also each plate's median over its wells")
     args = parser.parse_args(argv)
 
     import numpy as np
@@ -61,20 +65,31 @@ def main(argv: list[str] | None = None) -> None:
         print(f"{label:24s} {len(medians):5d}  hue {np.round(hue * 360).astype(int)}  saturation {np.round(sat, 2)}  "
               f"value {np.round(val, 2)}  green {np.round(green).astype(int)}  grain {np.round(grain, 2)}")
 
+    def plate_median(label: str, medians: np.ndarray) -> None:
+        hue, sat, val, green, grain = np.median(medians, axis=0)
+        print(f"  {label:22s} hue {hue * 360:5.0f}  saturation {sat:4.2f}  value {val:4.2f}  green {green:5.0f}  "
+              f"grain {grain:5.2f}")
+
     photos = list_images(SHARED / "data" / "plaque12" / "plates")
     if not photos:
         raise SystemExit(f"no real photos under {SHARED}: set PLATESYNTH_SHARED to the shared material")
     print(f"{'wells of':24s} {'n':>5s}  percentiles 10, 50, 90")
     for split in ("fit", "check"):
-        medians = [well_medians(image, fit_plate_grid(image))
-                   for image in (read_image(p) for p in photos if in_split(p.name, split))]
+        names = [p for p in photos if in_split(p.name, split)]
+        medians = [well_medians(image, fit_plate_grid(image)) for image in (read_image(p) for p in names)]
         report(f"real, {split}", np.concatenate(medians))
+        if args.per_plate:
+            for path, plate in zip(names, medians):
+                plate_median(path.stem, plate)
     config, label = preset_config(args)
     medians = []
     for index in range(args.images):
         result = render_raster(sample_scene(config, args.seed + index), (1216, 944))
         medians.append(well_medians(result.image, wells_from_mask(result.wells)))
     report(label, np.concatenate(medians))
+    if args.per_plate:
+        for index, plate in enumerate(medians):
+            plate_median(f"seed {args.seed + index}", plate)
 
 
 if __name__ == "__main__":

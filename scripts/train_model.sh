@@ -32,14 +32,13 @@ render() {
 # The shipped model's images were rendered before high's stain hue narrowed to 262-286 deg, its specks thinned
 # (commits bb0f6fd, faf389a), its pipette scratches, specks, plaques and lysed wells changed (eleventh
 # session), its walls' outlines and its wells' centres darkened and its colour casts weakened (twelfth), and its
-# walls' band darkened and tinted over a foot below the floors and its pipette scratches tilted (fifteenth), and its
-# stain saturated with a share of pale plates, its glare weakened and its plaques enlarged (sixteenth).
+# walls' band darkened and tinted over a foot below the floors and its pipette scratches tilted (fifteenth).
 # These settings, high's values of then, give the same configurations as then (compared with the manifests of its
-# data, and the first images and masks of each part pixel for pixel). SHIPPED_HIGH_ONLY applies to the high part
+# data, and the first images and masks of each part pixel for pixel). The plaques' two apply to the high part
 # only: crowded-soft.yaml sets its own. AS_SHIPPED=0, or a HIGH_CONFIG, renders today's high instead.
 AS_SHIPPED=${AS_SHIPPED:-1}
 SHIPPED_LOOK=()
-SHIPPED_HIGH_ONLY=()
+SHIPPED_PLAQUES=()
 if [ "$AS_SHIPPED" = 1 ] && [ -z "$HIGH_CONFIG" ]; then
     SHIPPED_LOOK=(--set "stain.hue_deg=[246,286]"
                   --set "stain.lysed_residue=[0.02,0.05]" --set "stain.lysed_strands=[0.3,0.5]"
@@ -52,13 +51,11 @@ if [ "$AS_SHIPPED" = 1 ] && [ -z "$HIGH_CONFIG" ]; then
                   --set "artifacts.pipette_bend={normal: [0.0, 0.35]}" --set "plate.rim_darkness=[0.25,0.45]"
                   --set "stain.centre_gradient=[0,0.15]" --set "post.white_balance_strength=[0,0.05]"
                   --set "plate.floor_height_mm=0" --set "plate.wall_stain=0" --set "plate.wall_band=0.04"
-                  --set "artifacts.pipette_tilt_deg=0" --set "artifacts.pipette_inset_mm=0"
-                  --set "stain.translucency=[0.0,0.008]" --set "stain.pale_plates=0" --set "lighting.glare=[0.0,0.04]")
-    SHIPPED_HIGH_ONLY=(--set "plaques.centre_residual=[0.15,0.4]" --set "plaques.clearness=[0.95,1.0]"
-                       --set "plaques.radius_mm={loguniform: [0.35, 1.5]}" --set "stain.saturation=[0.9,1.0]")
+                  --set "artifacts.pipette_tilt_deg=0" --set "artifacts.pipette_inset_mm=0")
+    SHIPPED_PLAQUES=(--set "plaques.centre_residual=[0.15,0.4]" --set "plaques.clearness=[0.95,1.0]")
 fi
 render high 450 201 high --set plaques.negative_plate=0.2 ${HIGH_CONFIG:+--config "$HIGH_CONFIG"} "${SHIPPED_LOOK[@]}" \
-    "${SHIPPED_HIGH_ONLY[@]}"
+    "${SHIPPED_PLAQUES[@]}"
 render medium 150 202 medium
 render diverse 150 204 diverse
 render crowded 150 205 high --config "$(dirname "$0")/../benchmarks/configs/crowded-soft.yaml" "${SHIPPED_LOOK[@]}"

@@ -47,7 +47,7 @@ def test_presets_load_and_sample_json_roundtrip(preset):
 # here changes every dataset rendered from these presets). Update only for a deliberate change of the sampling.
 SCENE_SHA256_SEED3 = {
     "diverse": "07fb78382c1a18607ea05899b48c1b196bfb73e0b5346b1a7e0fe8e0ea199263",
-    "high": "b32ca7ca22b5a457f6d6174e8b7aabd422f5335b2d57bc6cd8e7a24c8eede136",
+    "high": "644081aeca95923806441c89a761a046d7664dc0259447a0d30579144c522a5e",
     "lightbox12": "2c6622322d60c4ed22935a21eb9e576edc76e5c2b2df1f880c0428f2e8932804",
     "low": "66fc9bdcc9dc721c67111223d00aaa448a3e73e21dd14323ac463ab809af5897",
     "medium": "79e0430547bdc60d63c46aad3e0d6f0ab36fb1cf7f13a0ff092c8540ba39516e",
