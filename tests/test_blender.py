@@ -262,7 +262,8 @@ def test_the_image_matches_the_raster_renderers_light_on_floors_and_plastic(rend
 def test_the_stain_and_lysed_wells_are_the_raster_renderers(pool):
     """Both renderers read the scene's noise textures: the same lysed remnants, stain unevenness and plaque fray
     at the same places, so the images agree pixel by pixel inside the wells, not only on average."""
-    overrides = {"plaques.lysis_count": 1, "plaques.negative_plate": 0.0, "stain.pale_plates": 0.0}  # pale: see below
+    overrides = {"plaques.lysis_count": 1, "plaques.negative_plate": 0.0, "stain.pale_plates": 0.0}
+    # (a pale plate would leave the pale lysed colour below nothing to change)
     scene = sample_scene(load_config("high", overrides=overrides), 1000)
     assert any(w.lysed for w in scene.wells)
     size = (320, 240)

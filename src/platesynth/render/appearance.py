@@ -387,7 +387,7 @@ def draw_plaques(hinv, plaques, fourier, boxes, pixel_mm, from_below, top_radius
             amplitude += abs(fourier[p, k, 0]) + abs(fourier[p, k, 1])
         width = max(edge, pixel_mm)
         halo_mm = halo_width * radius
-        reach = radius * (1.0 + amplitude + 4.0 * lumps) + EDGE_SPAN * width
+        reach = radius * (1.0 + amplitude + 4.0 * lumps) + EDGE_SPAN * width  # lumps: to 4 sd of the noise
         if halo > 0.0:
             reach += 3.0 * halo_mm
         noise_dx = FRAY_ROWS_PER_PLAQUE * p
