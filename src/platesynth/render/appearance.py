@@ -96,6 +96,8 @@ LUMP_CELL_MM = 0.12
 cell): crenellated, cauliflower-like edges whose lumps keep their size whatever the plaque's."""
 LUMP_TILE_OFFSET = 101.3
 """The lumps read the fine tile this many cells away from where the drying texture reads it."""
+LUMP_REACH = 4.0
+"""A plaque's drawn box reaches this many sd of the lump noise beyond its outline."""
 FRAY_ROWS_PER_PLAQUE = 7.37
 """Each plaque reads the fray tile this many rows further along, so that neighbours fray differently."""
 CORE_DIP_SHARPNESS = 3.0
@@ -387,7 +389,7 @@ def draw_plaques(hinv, plaques, fourier, boxes, pixel_mm, from_below, top_radius
             amplitude += abs(fourier[p, k, 0]) + abs(fourier[p, k, 1])
         width = max(edge, pixel_mm)
         halo_mm = halo_width * radius
-        reach = radius * (1.0 + amplitude + 4.0 * lumps) + EDGE_SPAN * width  # lumps: to 4 sd of the noise
+        reach = radius * (1.0 + amplitude + LUMP_REACH * lumps) + EDGE_SPAN * width
         if halo > 0.0:
             reach += 3.0 * halo_mm
         noise_dx = FRAY_ROWS_PER_PLAQUE * p
@@ -591,7 +593,7 @@ def draw_well_content(
     if scene.plaques:
         plaques, fourier = plaque_table(scene, wells, top_centres)
         look = scene.plaque_look
-        reach = plaques["radius"] * (1.0 + np.abs(fourier).sum(axis=(1, 2))) + EDGE_SPAN * np.maximum(
+        reach = plaques["radius"] * (1.0 + np.abs(fourier).sum(axis=(1, 2)) + LUMP_REACH * look.lumps) + EDGE_SPAN * np.maximum(
             plaques["edge_width"], pixel_mm) + pixel_mm
         if look.halo > 0:
             reach = reach + 3.0 * look.halo_width * plaques["radius"]
