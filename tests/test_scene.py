@@ -7,6 +7,7 @@ import json
 import os
 import subprocess
 import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -54,11 +55,14 @@ SCENE_SHA256_SEED3 = {
 }
 
 
+def scene_hashes() -> dict[str, str]:
+    """sha256 of each preset's scene at seed 3, as :data:`SCENE_SHA256_SEED3` pins them."""
+    return {preset: hashlib.sha256(sample_scene(load_config(preset), 3).model_dump_json().encode()).hexdigest()
+            for preset in list_presets()}
+
+
 def test_presets_sample_the_pinned_scenes():
-    assert set(SCENE_SHA256_SEED3) == set(list_presets())
-    for preset, expected in SCENE_SHA256_SEED3.items():
-        scene_json = sample_scene(load_config(preset), 3).model_dump_json()
-        assert hashlib.sha256(scene_json.encode()).hexdigest() == expected, preset
+    assert scene_hashes() == SCENE_SHA256_SEED3
 
 
 def test_list_presets_has_realism_levels_and_lightbox():
@@ -433,18 +437,14 @@ def test_pipette_scratches_tilt_and_start_inside_the_rim_as_drawn():
 
 
 def _scene_hashes_in_subprocess(env: dict[str, str]) -> dict[str, str]:
-    code = (
-        "import hashlib, json\n"
-        "from platesynth.scene import list_presets, load_config, sample_scene\n"
-        "print(json.dumps({p: hashlib.sha256(sample_scene(load_config(p), 3).model_dump_json().encode()).hexdigest()"
-        " for p in list_presets()}))\n"
-    )
+    code = f"import json, sys; sys.path.insert(0, {str(Path(__file__).parent)!r}); import test_scene; " \
+           "print(json.dumps(test_scene.scene_hashes()))"
     done = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, check=True)
     return json.loads(done.stdout)
 
 
 def test_scenes_do_not_depend_on_the_cpus_vector_instructions():
-    """numpy picks its vectorised exp, log, power and hypot by the CPU (AVX-512 versions differ from the others in
+    """numpy picks its vectorised exp, power and hypot by the CPU (AVX-512 versions differ from the others in
     the last bit), so the sampler draws its transcendental values with ``math``: a seed gives the same scene on every
     x86-64 machine. Compared here: this process's numpy against one with the CPU's dispatched features beyond AVX2
     switched off."""
