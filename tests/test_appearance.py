@@ -334,3 +334,28 @@ def test_scratch_roughness_tears_each_edge_on_its_own(base_scene):
         assert edge.mean() == pytest.approx(0.3, abs=0.05)
     # a torn strip, not a chain of beads: the two edges swell and narrow apart
     assert abs(np.corrcoef(left, right)[0, 1]) < 0.5
+
+
+def test_lysed_speckle_is_finer_than_the_grain(base_scene):
+    scene, well = base_scene
+    lysed = scene.model_copy(update={
+        "plaques": (), "wells": tuple(w.model_copy(update={"lysed": w.id == well.id}) for w in scene.wells)})
+    row, col = (int(c * TEXELS_PER_MM) for c in well.center_mm[::-1])
+    reach = int(4 * TEXELS_PER_MM)
+
+    def bands(**stain) -> tuple[float, float]:
+        """Detail of the green transmittance near the centre finer than 0.1 mm (what a 0.1 mm blur removes) and
+        between 0.1 and 0.5 mm."""
+        variant = lysed.model_copy(update={"stain": lysed.stain.model_copy(update=stain)})
+        green = appearance.floor_transmittance(variant, TEXELS_PER_MM)[..., 1].astype(np.float64)
+        fine, coarse = (ndimage.gaussian_filter(green, s * TEXELS_PER_MM) for s in (0.1, 0.5))
+        window = np.s_[row - reach: row + reach, col - reach: col + reach]
+        return float((green - fine)[window].std()), float((fine - coarse)[window].std())
+
+    smooth = bands(lysed_grain=0.0, lysed_speckle=0.0)
+    speckled = bands(lysed_grain=0.0, lysed_speckle=0.8)
+    grainy = bands(lysed_grain=0.8, lysed_speckle=0.0)
+    assert speckled[0] > 4.0 * smooth[0]  # grains of about 0.15 mm: 8.4 times the finest detail, measured
+    # the speckle's detail lies mostly below 0.1 mm (1.07 times what lies between 0.1 and 0.5 mm), the grain's flakes
+    # above it (0.24 times)
+    assert speckled[0] / speckled[1] > 2.5 * grainy[0] / grainy[1]

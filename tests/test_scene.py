@@ -47,11 +47,11 @@ def test_presets_load_and_sample_json_roundtrip(preset):
 # sha256 of sample_scene(load_config(preset), 3).model_dump_json(): sampling must not change without intent (a change
 # here changes every dataset rendered from these presets). Update only for a deliberate change of the sampling.
 SCENE_SHA256_SEED3 = {
-    "diverse": "07fb78382c1a18607ea05899b48c1b196bfb73e0b5346b1a7e0fe8e0ea199263",
-    "high": "644081aeca95923806441c89a761a046d7664dc0259447a0d30579144c522a5e",
-    "lightbox12": "2c6622322d60c4ed22935a21eb9e576edc76e5c2b2df1f880c0428f2e8932804",
-    "low": "66fc9bdcc9dc721c67111223d00aaa448a3e73e21dd14323ac463ab809af5897",
-    "medium": "79e0430547bdc60d63c46aad3e0d6f0ab36fb1cf7f13a0ff092c8540ba39516e",
+    "diverse": "a9fc9c4e5e79cb0d8371384e555cf31c6b6b3f7ceab7aa673601058f4110d6e4",
+    "high": "6ea3c59f486b5dc576863b28751e5394963a060095771813a0640d8dc63037d5",
+    "lightbox12": "ed65756a0e8c51c00a6e4ce6c280f05a875669bb0cdc498b454f2dcd08b69ba6",
+    "low": "c9c537917eba98f75bda037853287eaef62e3f00ae31d09a887ef3d5a31d7f3d",
+    "medium": "49ca28212fa275bfd9de7a7177cbec77ff8e3c25d42f6ce897c64bb627f1d7c9",
 }
 
 
@@ -397,6 +397,10 @@ def test_lysed_paleness_draws_the_remnants_colour_from_the_pale_palette_and_noth
     ("plate_look", {"plate.floor_height_mm": [1.0, 3.0]}, {"plate.floor_height_mm": 0.0}),
     ("plate_look", {"plate.wall_stain": [0.01, 0.05]}, {"plate.wall_stain": 0.0}),
     ("plaque_look", {"plaques.lumps": [0.05, 0.1]}, {"plaques.lumps": 0.0}),
+    ("stain", {"stain.lysed_speckle": [0.3, 0.6]}, {"stain.lysed_speckle": 0.0}),
+    ("post", {"post.sharpen_luma": [0.5, 1.0]}, {"post.sharpen_luma": 0.0}),
+    ("plate_look", {"plate.top_edge_blur_mm": [0.2, 0.6]}, {"plate.top_edge_blur_mm": 0.0}),
+    ("post", {"post.noise_grain_px": [0.8, 1.4]}, {"post.noise_grain_px": 0.0}),
 ])
 def test_a_parameter_added_later_is_drawn_beside_the_others(part, drawn, fixed):
     for seed in range(4):

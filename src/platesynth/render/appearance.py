@@ -73,6 +73,9 @@ LYSED_STRAND_FINE = 0.4
 """Strands vary along their length with the drying texture by this share."""
 LYSED_FLAKE_CELL_MM = 0.15
 """Cell of the flakes of a lysed well's remnant (the mottle tile read at this coarser cell)."""
+LYSED_SPECKLE_CELL_MM = 0.08
+"""Cell of the fine speckle of a lysed well's remnant (the fine tile read at this cell, the well's shifts swapped so
+that it does not echo the drying texture)."""
 LYSED_DISC_EDGE_MM = 2.5
 """The disc of ``stain.lysed_disc`` fades out over this width across its outline..."""
 LYSED_DISC_WOBBLE_MM, LYSED_DISC_FRAY_MM = 1.0, 0.4
@@ -160,6 +163,7 @@ STAIN_DTYPE = np.dtype(
         ("lysed_residue", np.float64),
         ("lysed_strands", np.float64),
         ("lysed_grain", np.float64),
+        ("lysed_speckle", np.float64),
         ("lysed_disc", np.float64),
         ("lysed_disc_radius", np.float64),
         ("lysed_clump_level", np.float64),  # the tile's level above which a clump lies (inf: none)
@@ -233,7 +237,7 @@ def stain_table(scene: Scene, textures: SceneTextures) -> np.ndarray:
                 stain.translucency, stain.rim_mottle, stain.rim_mottle_mm, stain.rim_mottle_side,
                 math.cos(math.radians(stain.rim_mottle_angle_deg)), math.sin(math.radians(stain.rim_mottle_angle_deg)),
                 stain.meniscus, stain.lysed_density, stain.lysed_residue, stain.lysed_strands,
-                stain.lysed_grain, stain.lysed_disc, stain.lysed_disc_radius, clump_level(stain.lysed_clumps), *absorbance,
+                stain.lysed_grain, stain.lysed_speckle, stain.lysed_disc, stain.lysed_disc_radius, clump_level(stain.lysed_clumps), *absorbance,
                 *lysed_absorbance)
     return table
 
@@ -325,6 +329,9 @@ def monolayer_density(u, v, du, dv, dist, radius, well, stain, low_grid, fibre_g
         if stain.lysed_grain > 0.0:  # flakes of what is left (the mottle tile, read in another place)
             flakes = tile_sample(mottle_tile, (u + well.noise_x) / LYSED_FLAKE_CELL_MM, (v + well.noise_y) / LYSED_FLAKE_CELL_MM)
             remnant *= max(1.0 + stain.lysed_grain * flakes, 0.0)
+        if stain.lysed_speckle > 0.0:  # grains of stained debris
+            speck = tile_sample(fine_tile, (u + well.noise_y) / LYSED_SPECKLE_CELL_MM, (v + well.noise_x) / LYSED_SPECKLE_CELL_MM)
+            remnant *= max(1.0 + stain.lysed_speckle * speck, 0.0)
         intact = density
         density *= stain.lysed_density * remnant * (1.0 - LYSED_RIM_LOSS * math.exp(-max(radius - dist, 0.0) / LYSED_RIM_MM))
         if stain.lysed_clump_level < math.inf:  # islands of intact cells the virus left

@@ -2,11 +2,13 @@
 
 Both renderers read these: the raster renderer's numba kernels (:mod:`platesynth.render.shading`,
 :mod:`platesynth.render.postprocess`) and the Blender side's node trees (:mod:`platesynth.render.blender.inside`).
-This module is plain Python with no imports, so the Blender side can import it without numba or the raster
+This module is plain Python importing only :mod:`math`, so the Blender side can import it without numba or the raster
 renderer. The look of a well's content (stain, plaques, lysis) is not here: :mod:`platesynth.render.appearance`
 computes it once, and Blender receives it as textures. Scene parameters that vary between images are in the
 parameter catalogue (:mod:`platesynth.scene`), not here.
 """
+
+import math
 
 # ---- the plate's plastic
 FLOOR_TRANSMITTANCE = 0.96
@@ -62,5 +64,15 @@ NOISE_SHARED, NOISE_OWN = 0.5, 0.85
 """Sensor noise: weights of the part shared by the three channels and of each channel's own part."""
 NOISE_FLOOR, NOISE_MID_GREY = 0.02, 0.5
 """Sensor noise grows as the square root of the level (floored) relative to mid grey."""
+
+
+def noise_grain_gain(sigma_px: float) -> float:
+    """The factor that gives white noise blurred by a Gaussian of ``sigma_px`` (sampled out to 3 sigma, as the
+    post-processing samples it) its standard deviation back: ``1 / sum(w**2)`` over the normalised 1-D weights ``w``
+    (in 2-D the sd falls by that sum)."""
+    radius = max(1, math.ceil(3.0 * sigma_px))
+    weights = [math.exp(-0.5 * (i / sigma_px) ** 2) for i in range(-radius, radius + 1)]
+    total = sum(weights)
+    return 1.0 / sum((w / total) ** 2 for w in weights)
 LUMINANCE = (0.2126, 0.7152, 0.0722)
 """Rec. 709 luminance weights."""

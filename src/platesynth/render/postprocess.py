@@ -15,7 +15,7 @@ import numpy as np
 from PIL import Image
 
 from platesynth.render import post_kernels as kernels
-from platesynth.render.look import BLOOM_RADIUS, BLOOM_THRESHOLD, CLARITY_RADIUS, LUMINANCE
+from platesynth.render.look import BLOOM_RADIUS, BLOOM_THRESHOLD, CLARITY_RADIUS, LUMINANCE, noise_grain_gain
 from platesynth.scene.concrete import PostProcessing
 
 
@@ -116,16 +116,23 @@ def bloom(image: np.ndarray, strength: float, threshold: float = BLOOM_THRESHOLD
     return image + strength * glow
 
 
-def sharpen(image: np.ndarray, amount: float, sigma: float = 1.0) -> np.ndarray:
-    """Unsharp masking."""
-    return image + amount * (image - gaussian_blur(image, sigma))
+def sharpen(image: np.ndarray, amount: float, sigma: float = 1.0, luma: float = 0.0) -> np.ndarray:
+    """Unsharp masking; a share ``luma`` (0..1) of it adds the luminance's detail to every channel, as a phone
+    sharpens, so that a coloured edge gets no coloured halo."""
+    detail = image - gaussian_blur(image, sigma)
+    if luma > 0.0:
+        detail = (1.0 - luma) * detail + luma * _luminance(detail)[..., None]
+    return image + amount * detail
 
 
-def sensor_noise(image: np.ndarray, sd_levels: float, rng: np.random.Generator) -> np.ndarray:
+def sensor_noise(image: np.ndarray, sd_levels: float, rng: np.random.Generator, grain_px: float = 0.0) -> np.ndarray:
     """Signal-dependent, nearly Gaussian noise with sd ``sd_levels`` (8-bit levels) at mid grey, partly shared
-    by the channels like a demosaiced sensor's."""
+    by the channels like a demosaiced sensor's; ``grain_px`` > 0 clumps it into grains (blurred by that sd in
+    pixels, its sd kept), as a phone's demosaicing and denoising leave it."""
     out = np.array(image, dtype=np.float32, copy=True)
     kernels.add_sensor_noise(out, np.float32(sd_levels / 255.0), int(rng.integers(0, 2**62)))
+    if grain_px > 0.0:
+        out = image + gaussian_blur(out - image, grain_px) * np.float32(noise_grain_gain(grain_px))
     return out
 
 
@@ -169,7 +176,7 @@ def apply_post(image: np.ndarray, post: PostProcessing, rng: np.random.Generator
     if post.bloom.enabled:
         image = bloom(image, post.bloom.strength)
     if post.sharpen.enabled:
-        image = sharpen(image, post.sharpen.strength, sigma=max(0.5, px_scale))
+        image = sharpen(image, post.sharpen.strength, sigma=max(0.5, px_scale), luma=post.sharpen_luma)
     if post.noise.enabled:
-        image = sensor_noise(image, post.noise.strength, rng)
+        image = sensor_noise(image, post.noise.strength, rng, grain_px=post.noise_grain_px * px_scale)
     return image

@@ -66,6 +66,15 @@ def ring(dist, radius, half_width, pixel_mm):
     return clip01((half_width - abs(dist - radius)) / pixel_mm + 0.5)
 
 
+@njit(cache=True, nogil=True, inline="always")
+def smeared_ring(dist, radius, half_width, width):
+    """Coverage of a ring of ``half_width`` smeared over ``width`` (a box of that width averaged across it): as dark
+    in all, the wider the fainter."""
+    offset = dist - radius
+    overlap = min(offset + 0.5 * width, half_width) - max(offset - 0.5 * width, -half_width)
+    return max(overlap, 0.0) / width
+
+
 def boxes_from_extents(corners_px: np.ndarray, height: int, width: int) -> np.ndarray:
     """Pixel boxes ``(y0, y1, x0, x1)`` (clipped, int64) from the projected corners ``(n, 4, 2)`` of each object."""
     lo = np.floor(corners_px.min(axis=1)) - 1

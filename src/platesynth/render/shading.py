@@ -34,7 +34,7 @@ from platesynth.render.look import (
     RULER_WIDTH_MM,
     SKIRT_DARKENING,
 )
-from platesynth.render.sampling import clip01, grid_sample, ring, to_plate
+from platesynth.render.sampling import clip01, grid_sample, ring, smeared_ring, to_plate
 
 FRAME_DTYPE = np.dtype(
     [
@@ -56,6 +56,7 @@ FRAME_DTYPE = np.dtype(
         ("foot_scale", np.float64),  # lengths at the walls' foot, seen with parallax, over those at the floor
         ("from_below", np.bool_),
         ("top_edge_through_floor", np.float64),  # share of the top edge's outlines seen through a floor
+        ("top_edge_blur", np.float64),  # width over which the top edge's outlines are smeared (mm)
         ("transmittance", np.float64),  # the plastic between the wells
         ("rim_darkness", np.float64),
         ("wall_band", np.float64),  # relative brightness over the walls' thickness
@@ -130,6 +131,14 @@ def plate_signed_distance(u, v, f):
 
 
 @njit(cache=True, nogil=True, inline="always")
+def top_ring(dist, radius, half_width, f):
+    """Coverage of an outline of the walls' top edge, smeared over ``f.top_edge_blur`` mm (out of focus)."""
+    if f.top_edge_blur <= 0.0:
+        return ring(dist, radius, half_width, f.pixel_mm)
+    return smeared_ring(dist, radius, half_width, math.hypot(f.pixel_mm, f.top_edge_blur))
+
+
+@njit(cache=True, nogil=True, inline="always")
 def plastic(foot_dist, top_dist, disc, signed, relief, f):
     """Share of the light the plastic passes: the floor or the deck, the walls' band and outlines, the embossing
     (``relief``) and the skirt; ``disc`` is the pixel's coverage by the well's floor, ``foot_dist`` its distance from
@@ -144,8 +153,8 @@ def plastic(foot_dist, top_dist, disc, signed, relief, f):
     outlines = (
         OUTLINE_WEIGHTS[0] * ring(foot_dist, foot_radius, line_half, f.pixel_mm)
         + OUTLINE_WEIGHTS[1] * ring(foot_dist, foot_outer, line_half, f.pixel_mm)
-        + behind_layer * (OUTLINE_WEIGHTS[2] * ring(top_dist, f.top_radius, line_half, f.pixel_mm)
-                          + OUTLINE_WEIGHTS[3] * ring(top_dist, f.top_radius + f.wall, line_half, f.pixel_mm))
+        + behind_layer * (OUTLINE_WEIGHTS[2] * top_ring(top_dist, f.top_radius, line_half, f)
+                          + OUTLINE_WEIGHTS[3] * top_ring(top_dist, f.top_radius + f.wall, line_half, f))
     )
     band = 1.0 if foot_radius < foot_dist < foot_outer else 0.0
     # the foot's opening minus the floor: none where the foot lies at the floor's height

@@ -59,6 +59,9 @@ class PlateConfig(Section):
     top_edge_through_floor: Dist = number(0.0, 0.0, 1.0, "",
                                           "share of the walls' top-edge outlines seen through a well's floor from "
                                           "below (an arc across the monolayer where parallax puts the edge)")
+    top_edge_blur_mm: Dist = number(0.0, 0.0, 2.0, "mm",
+                                    "how far the outlines of the walls' top edge are smeared: the top edge lies a "
+                                    "well's depth from the floors the camera focuses on, so it is out of focus")
     wall_band: Dist = number(0.04, -0.3, 0.3, "", "how much brighter the plate looks over a well's wall, seen end-on, "
                              "than over the plastic around it (negative: darker)")
     floor_height_mm: Dist = number(0.0, 0.0, 5.0, "mm",
@@ -129,6 +132,9 @@ class StainConfig(Section):
     lysed_residue: Dist = number(0.04, 0.0, 1.0, "", "share of the layer a lysed well keeps everywhere (a pale film)")
     lysed_strands: Dist = number(1.0, 0.0, 3.0, "", "strength of the network of strands a lysed well keeps")
     lysed_grain: Dist = number(0.0, 0.0, 3.0, "", "granular texture of what a lysed well keeps")
+    lysed_speckle: Dist = number(
+        0.0, 0.0, 3.0, "", "fine speckle of what a lysed well keeps: grains of stained debris about 0.15 mm across, "
+        "where lysed_grain draws flakes of about half a millimetre")
     lysed_disc: Dist = number(
         0.0, 0.0, 1.0, "", "share of what a lysed well keeps that gathers in a denser central disc with a ragged "
         "edge, the rest thinning out around it: 0 a cloud over the whole well")
@@ -263,8 +269,12 @@ class PostConfig(Section):
     bloom_strength: Dist = number([0.05, 0.2], 0.0, 1.0, "", "glow around bright areas")
     sharpen: float = probability(1.0, "chance of sharpening")
     sharpen_strength: Dist = number([1.0, 2.0], 0.0, 2.0, "", "unsharp-mask amount")
+    sharpen_luma: Dist = number(0.0, 0.0, 1.0, "", "share of the sharpening done on the luminance alone, as a "
+                                "phone does (0 sharpens each colour channel: coloured halos at coloured edges)")
     noise: float = probability(1.0, "chance of sensor noise")
     noise_strength: Dist = number([1.0, 2.5], 0.0, 30.0, "levels", "noise sd in 8-bit levels")
+    noise_grain_px: Dist = number(0.0, 0.0, 3.0, "px", "sd of the blur that clumps the noise into grains, px at 1024 px "
+                                  "width, its sd kept (a phone's demosaicing and denoising; 0: each pixel its own)")
     jpeg: float = probability(0.9, "chance of JPEG compression")
     jpeg_strength: Dist = number([0.05, 0.2], 0.0, 0.9, "", "1 - JPEG quality/100")
 

@@ -60,6 +60,7 @@ class PlateLook(_Concrete):
     label_strength: float = Field(description="contrast of the embossed labels and rings, 0..1")
     top_edge_through_floor: float = Field(
         0.0, description="share of the walls' top-edge outlines seen through a well's floor from below, 0..1")
+    top_edge_blur_mm: float = Field(0.0, description="width over which the top edge's outlines are smeared, mm")
     wall_band: float = Field(
         0.04, description="relative brightness of the plate over a well's wall, seen end-on (negative: darker)")
     floor_height_mm: float = Field(
@@ -88,6 +89,7 @@ class Stain(_Concrete):
     lysed_residue: float = Field(0.04, description="share of the layer a lysed well keeps everywhere (a pale film)")
     lysed_strands: float = Field(1.0, description="strength of the network of strands a lysed well keeps")
     lysed_grain: float = Field(0.0, description="granular texture of what a lysed well keeps (relative, per sd)")
+    lysed_speckle: float = Field(0.0, description="fine speckle of what a lysed well keeps (relative, per sd)")
     lysed_disc: float = Field(0.0, description="share of what a lysed well keeps gathered in a central disc, 0..1")
     lysed_disc_radius: float = Field(0.6, description="radius of that disc, share of the well's radius")
     lysed_clumps: float = Field(0.0, description="share of a lysed well's area still holding clumps of intact cells")
@@ -267,7 +269,9 @@ class PostProcessing(_Concrete):
     chromatic_aberration: Effect = Field(default=Effect(), description="lateral colour shift, px at the corners")
     bloom: Effect = Field(default=Effect(), description="glow around bright areas, strength 0..1")
     sharpen: Effect = Field(default=Effect(), description="unsharp masking, strength 0..2")
+    sharpen_luma: float = Field(default=0.0, description="share of the sharpening done on the luminance alone, 0..1")
     noise: Effect = Field(default=Effect(), description="sensor noise, standard deviation in 8-bit levels")
+    noise_grain_px: float = Field(default=0.0, description="sd of the blur that clumps the noise, px at 1024 px width")
     jpeg: Effect = Field(default=Effect(), description="JPEG compression, strength = 1 - quality/100")
 
 

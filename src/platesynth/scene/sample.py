@@ -151,6 +151,7 @@ def sample_scene(config: SceneConfig, seed: int) -> Scene:
         wall_band=c.plate.draw("wall_band", scene_rng(seed, "plate_walls")),  # beside the main order
         floor_height_mm=c.plate.draw("floor_height_mm", scene_rng(seed, "plate_floor")),
         wall_stain=c.plate.draw("wall_stain", scene_rng(seed, "wall_stain")),
+        top_edge_blur_mm=c.plate.draw("top_edge_blur_mm", scene_rng(seed, "top_edge_blur")),
     )
 
     tilt = c.camera.draw("tilt_deg", rng)
@@ -200,6 +201,7 @@ def sample_scene(config: SceneConfig, seed: int) -> Scene:
     lysed_disc = scene_rng(seed, "lysed_disc")  # the disc of what lysed wells keep, likewise
     lysed_shape = {name: c.stain.draw(name, lysed_disc) for name in ("lysed_disc", "lysed_disc_radius")}
     lysed_shape["lysed_clumps"] = c.stain.draw("lysed_clumps", scene_rng(seed, "lysed_clumps"))  # likewise
+    lysed_shape["lysed_speckle"] = c.stain.draw("lysed_speckle", scene_rng(seed, "lysed_speckle"))  # likewise
     stain = Stain(
         hue_deg=hue_deg,
         saturation=saturation,
@@ -329,6 +331,8 @@ def sample_scene(config: SceneConfig, seed: int) -> Scene:
         glare_radius=c.lighting.draw("glare_radius", rng),
     )
     post = _sample_post(c, rng)
+    post = post.model_copy(update={"sharpen_luma": c.post.draw("sharpen_luma", scene_rng(seed, "sharpen_luma")),
+                                   "noise_grain_px": c.post.draw("noise_grain_px", scene_rng(seed, "noise_grain"))})
     texture_seed = int(rng.integers(0, 2**31 - 1))
     # the look of plaques and of the rim's mottle are drawn last, so that adding them left every earlier draw as it was
     plaque_look = PlaqueLook(**{name: c.plaques.draw(name, rng) for name in PlaqueLook.model_fields

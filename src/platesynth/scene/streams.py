@@ -13,7 +13,8 @@ import numpy as np
 STREAMS = ("well_offsets", "unevenness", "fibres", "desk", "fine", "residual", "post", "mottle", "stain_palette",
            "lysed_palette", "scratch_edges", "lysed_disc",
            "plate_walls", "lysed_clumps", "rim_band", "plate_floor", "wall_stain", "pipette_pose",
-           "plaque_lumps")
+           "plaque_lumps", "lysed_speckle", "sharpen_luma",
+           "top_edge_blur", "noise_grain")
 """The random streams of a scene's seed, in the order they are spawned (append new ones at the end)."""
 
 

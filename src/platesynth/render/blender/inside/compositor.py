@@ -27,6 +27,7 @@ from platesynth.render.look import (
     NOISE_MID_GREY,
     NOISE_OWN,
     NOISE_SHARED,
+    noise_grain_gain,
 )
 
 IMAGE_FILE = "image"
@@ -238,6 +239,8 @@ def _post(chain: _Chain, post: Mapping[str, Any], seed: int, px_scale: float, wi
     if (strength := enabled("sharpen")) is not None:
         soft = chain.blur(chain.image, max(0.5, px_scale))
         detail = chain.mix("SUBTRACT", soft)
+        if (luma := float(post["sharpen_luma"])) > 0.0:  # the luminance's detail in every channel, for that share
+            detail = chain.mix("MIX", chain.gray(chain.luminance(detail)), factor=chain.value("Sharpen Luma", luma), a=detail)
         chain.image = chain.mix("ADD", detail, factor=chain.value("Sharpen", strength))
     if (strength := enabled("noise")) is not None:
         pixel = output(chain.coordinates(), "Pixel")
@@ -251,7 +254,11 @@ def _post(chain: _Chain, post: Mapping[str, Any], seed: int, px_scale: float, wi
         mixed = chain.mix("ADD", chain.mix("MULTIPLY", (NOISE_OWN,) * 3 + (1.0,), a=own), a=chain.mix("MULTIPLY", (NOISE_SHARED,) * 3 + (1.0,), a=shared))
         level = chain.math("SQRT", chain.math("DIVIDE", chain.math("MAXIMUM", chain.luminance(chain.image), NOISE_FLOOR), NOISE_MID_GREY))
         sd = chain.math("MULTIPLY", level, chain.math("MULTIPLY", chain.value("Noise Levels", strength), math.sqrt(12.0) / 255.0))
-        chain.image = chain.mix("ADD", chain.mix("MULTIPLY", chain.gray(sd), a=mixed))
+        noise = chain.mix("MULTIPLY", chain.gray(sd), a=mixed)
+        if (grain := float(post["noise_grain_px"]) * px_scale) > 0.0:  # clumped into grains, its sd kept
+            gain = noise_grain_gain(grain)
+            noise = chain.mix("MULTIPLY", (gain, gain, gain, 1.0), a=chain.blur(noise, grain))
+        chain.image = chain.mix("ADD", noise)
 
 
 def mask_tree(directory: str) -> bpy.types.NodeTree:

@@ -274,20 +274,35 @@ def blot_material(unevenness: PlateTexture) -> bpy.types.Material:
 
 
 def rim_material(well_radius: float) -> bpy.types.Material:
-    """The walls' bands and outlines: ink (the ``ink`` attribute), faded towards white by the share
-    ``rim_hidden_inside`` where the ray crossed the floors' plane (``z = 0``) within ``well_radius`` of the ring's
-    ``rim_center``."""
+    """The walls' bands and outlines: ink (the ``ink`` attribute) over the share of the ring that a ring of
+    ``ring_half_width`` about ``ring_radius`` smeared over ``ring_smear`` covers (as the raster renderer's
+    ``smeared_ring``; all of it without a smear), faded towards white by the share ``rim_hidden_inside`` where the ray
+    crossed the floors' plane (``z = 0``) within ``well_radius`` of the ring's ``rim_center``."""
     material, tree, out = _new_material("platesynth.rims")
     geometry = add(tree, "ShaderNodeNewGeometry")
     position, incoming = output(geometry, "Position"), output(geometry, "Incoming")
+    centre = _attribute(tree, "rim_center", "Vector")
+    across = feed(tree, add(tree, "ShaderNodeSeparateXYZ"), Vector=vector_math(tree, "SUBTRACT", position, centre))
+    offset = math(tree, "SUBTRACT", math(tree, "SQRT", math(tree, "ADD", math(tree, "MULTIPLY", output(across, "X"), output(across, "X")),
+                                                                   math(tree, "MULTIPLY", output(across, "Y"), output(across, "Y")))),
+                  _attribute(tree, "ring_radius"))
+    half_width = _attribute(tree, "ring_half_width")
+    smear = math(tree, "MAXIMUM", _attribute(tree, "ring_smear"), 1e-3)  # a micrometre: float32 keeps the ratio
+    half_smear = math(tree, "MULTIPLY", smear, 0.5)
+    overlap = math(tree, "SUBTRACT", math(tree, "MINIMUM", math(tree, "ADD", offset, half_smear), half_width),
+                   math(tree, "MAXIMUM", math(tree, "SUBTRACT", offset, half_smear), math(tree, "MULTIPLY", half_width, -1.0)))
+    coverage = math(tree, "DIVIDE", math(tree, "MAXIMUM", overlap, 0.0), smear)
+    coverage.use_clamp = True
+    covered = add(tree, "ShaderNodeMix", data_type="RGBA", blend_type="MIX", clamp_result=False)
+    feed(tree, covered, Factor=coverage, A=(1.0, 1.0, 1.0, 1.0), B=_attribute(tree, "ink", "Color"))
     # the point where the ray (towards the camera along ``incoming``) crossed the floors' plane
     to_floor = math(tree, "DIVIDE", output(feed(tree, add(tree, "ShaderNodeSeparateXYZ"), Vector=position), "Z"), output(feed(tree, add(tree, "ShaderNodeSeparateXYZ"), Vector=incoming), "Z"))
     back = feed(tree, add(tree, "ShaderNodeVectorMath", operation="SCALE"), Vector=incoming, Scale=to_floor)
     crossing = vector_math(tree, "SUBTRACT", position, output(back, "Vector"))
-    off_centre = output(vector_math(tree, "DISTANCE", crossing, _attribute(tree, "rim_center", "Vector")), "Value")
+    off_centre = output(vector_math(tree, "DISTANCE", crossing, centre), "Value")
     through_floor = math(tree, "MULTIPLY", math(tree, "LESS_THAN", off_centre, _value(tree, "Well Radius", well_radius)), _attribute(tree, "rim_hidden_inside"))
     ink = add(tree, "ShaderNodeMix", data_type="RGBA", blend_type="MIX", clamp_result=False)
-    feed(tree, ink, Factor=through_floor, A=_attribute(tree, "ink", "Color"), B=(1.0, 1.0, 1.0, 1.0))
+    feed(tree, ink, Factor=through_floor, A=output(covered, "Result"), B=(1.0, 1.0, 1.0, 1.0))
     link(tree, feed(tree, add(tree, "ShaderNodeBsdfTransparent"), Color=output(ink, "Result")), out)
     return material
 

@@ -166,28 +166,32 @@ def _rims(
     # just behind the floors' film, each ring at its own height: overlapping films must not coincide
     step = -float(view["toward_camera"]) * 0.05
     band = 1.0 + float(scene_data["plate_look"]["wall_band"])
-    rings = [  # inner radius, outer radius, height, colour, share hidden behind the floors, tinted by the well
-        (radius, radius + wall, foot + step, band, 0.0, True),
-        (radius - line / 2, radius + line / 2, foot + 2 * step, 1.0 - foot_inner * darkness, 0.0, False),
-        (radius + wall - line / 2, radius + wall + line / 2, foot + 3 * step, 1.0 - foot_outer * darkness, 0.0, False),
-        (top - line / 2, top + line / 2, depth - 0.05, 1.0 - top_inner * darkness, hidden_by_floor, False),
-        (top + wall - line / 2, top + wall + line / 2, depth - 0.05, 1.0 - top_outer * darkness, hidden_by_floor, False),
+    blur = float(scene_data["plate_look"]["top_edge_blur_mm"])  # the top edge is out of focus: smeared, as faint in all
+    rings = [  # middle radius, half width, smeared over, height, colour, share hidden behind the floors, tinted
+        (radius + wall / 2, wall / 2, 0.0, foot + step, band, 0.0, True),
+        (radius, line / 2, 0.0, foot + 2 * step, 1.0 - foot_inner * darkness, 0.0, False),
+        (radius + wall, line / 2, 0.0, foot + 3 * step, 1.0 - foot_outer * darkness, 0.0, False),
+        (top, line / 2, blur, depth - 0.05, 1.0 - top_inner * darkness, hidden_by_floor, False),
+        (top + wall, line / 2, blur, depth - 0.05, 1.0 - top_outer * darkness, hidden_by_floor, False),
     ]
     if foot < 0.0:  # the floor hides the disc's middle
-        rings.append((0.5 * radius, radius, foot + step, band, 1.0, True))
+        rings.append((0.75 * radius, 0.25 * radius, 0.0, foot + step, band, 1.0, True))
     n = len(centres)
     tints = np.asarray(view["wall_tints"], dtype=np.float64)
-    inks = np.concatenate([r[3] * (tints if r[5] else np.ones((n, 3))) for r in rings])
+    inks = np.concatenate([r[4] * (tints if r[6] else np.ones((n, 3))) for r in rings])
     rims = geometry.annuli(
         "platesynth.rims",
         np.concatenate([centres] * len(rings)),
-        np.repeat([r[0] for r in rings], n),
-        np.repeat([r[1] for r in rings], n),
-        np.repeat([r[2] for r in rings], n),
+        np.repeat([r[0] - r[1] - r[2] / 2 for r in rings], n),
+        np.repeat([r[0] + r[1] + r[2] / 2 for r in rings], n),
+        np.repeat([r[3] for r in rings], n),
         {
             "ink": inks,
             "rim_center": _with_z(np.concatenate([centres] * len(rings)), 0.0),
-            "rim_hidden_inside": np.repeat([r[4] for r in rings], n),
+            "rim_hidden_inside": np.repeat([r[5] for r in rings], n),
+            "ring_radius": np.repeat([r[0] for r in rings], n),
+            "ring_half_width": np.repeat([r[1] for r in rings], n),
+            "ring_smear": np.repeat([r[2] for r in rings], n),
         },
     )
     rims.data.materials.append(materials.rim_material(radius))
