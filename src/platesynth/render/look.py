@@ -64,6 +64,8 @@ NOISE_SHARED, NOISE_OWN = 0.5, 0.85
 """Sensor noise: weights of the part shared by the three channels and of each channel's own part."""
 NOISE_FLOOR, NOISE_MID_GREY = 0.02, 0.5
 """Sensor noise grows as the square root of the level (floored) relative to mid grey."""
+LUMINANCE = (0.2126, 0.7152, 0.0722)
+"""Rec. 709 luminance weights."""
 
 
 def noise_grain_gain(sigma_px: float) -> float:
@@ -74,5 +76,3 @@ def noise_grain_gain(sigma_px: float) -> float:
     weights = [math.exp(-0.5 * (i / sigma_px) ** 2) for i in range(-radius, radius + 1)]
     total = sum(weights)
     return 1.0 / sum((w / total) ** 2 for w in weights)
-LUMINANCE = (0.2126, 0.7152, 0.0722)
-"""Rec. 709 luminance weights."""
