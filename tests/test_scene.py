@@ -48,7 +48,7 @@ def test_presets_load_and_sample_json_roundtrip(preset):
 # here changes every dataset rendered from these presets). Update only for a deliberate change of the sampling.
 SCENE_SHA256_SEED3 = {
     "diverse": "a9fc9c4e5e79cb0d8371384e555cf31c6b6b3f7ceab7aa673601058f4110d6e4",
-    "high": "e62d30eaeaaa1ff27703f7edcf2db04f6846f324dc130922cd4e7ffa2a30ee82",
+    "high": "096f7693a179c312e9fad0d0f25ed3e32e9e6dcd83505adf8b095a77194d9756",
     "lightbox12": "ed65756a0e8c51c00a6e4ce6c280f05a875669bb0cdc498b454f2dcd08b69ba6",
     "low": "c9c537917eba98f75bda037853287eaef62e3f00ae31d09a887ef3d5a31d7f3d",
     "medium": "49ca28212fa275bfd9de7a7177cbec77ff8e3c25d42f6ce897c64bb627f1d7c9",
