@@ -286,11 +286,13 @@ def test_the_stain_and_lysed_wells_are_the_raster_renderers(pool):
 
 def _scene_without_post():
     """A plate without plaques in a bright exposure (so that bloom has bright areas to glow around), and the same
-    with every post-processing effect and the optical blur off."""
+    with every post-processing effect and the optical blur off (and sharpening per channel, noise per pixel, when
+    switched on)."""
     from platesynth.scene.concrete import Effect
 
     scene = sample_scene(load_config("high", overrides={"plaques.negative_plate": 1.0, "lighting.exposure_ev": 0.0}), 2)
     switches = {name: effect.model_copy(update={"enabled": False}) for name, effect in scene.post if isinstance(effect, Effect)}
+    switches |= {"sharpen_luma": 0.0, "noise_grain_px": 0.0}
     return scene, scene.model_copy(update={"post": scene.post.model_copy(update=switches),
                                            "camera": scene.camera.model_copy(update={"defocus_px": 0.0})})
 
