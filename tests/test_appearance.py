@@ -31,6 +31,12 @@ def well_content(scene, top_radius: float = 99.0) -> appearance.WellContent:
     return appearance.draw_well_content(scene, grid, wells, centres, top_radius, scene_textures(scene))
 
 
+def one_lysed_well(scene, well):
+    """``scene`` without plaques, ``well`` its only lysed well."""
+    return scene.model_copy(update={
+        "plaques": (), "wells": tuple(w.model_copy(update={"lysed": w.id == well.id}) for w in scene.wells)})
+
+
 def clearing_profile(scene, well, look: PlaqueLook) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Clearing and rim density along a ray from the plaque's centre (distance in mm)."""
     scene = scene.model_copy(update={"plaque_look": look})
@@ -125,8 +131,7 @@ def test_floor_texture_is_the_raster_renderers_stain(base_scene):
 
 def test_lysed_density_sets_how_pale_a_lysed_well_is(base_scene):
     scene, well = base_scene
-    lysed = scene.model_copy(update={
-        "plaques": (), "wells": tuple(w.model_copy(update={"lysed": w.id == well.id}) for w in scene.wells)})
+    lysed = one_lysed_well(scene, well)
     row, col = (int(c * TEXELS_PER_MM) for c in well.center_mm[::-1])
     reach = int(4 * TEXELS_PER_MM)
 
@@ -162,8 +167,7 @@ def _texel_places(shape: tuple[int, ...], well) -> tuple[np.ndarray, np.ndarray]
 
 def test_lysed_disc_gathers_the_remnant_in_the_middle_of_the_well(base_scene):
     scene, well = base_scene
-    lysed = scene.model_copy(update={
-        "plaques": (), "wells": tuple(w.model_copy(update={"lysed": w.id == well.id}) for w in scene.wells)})
+    lysed = one_lysed_well(scene, well)
     radius = scene.plate.well_radius_mm
 
     def density(**stain) -> tuple[float, float]:
@@ -184,8 +188,7 @@ def test_lysed_disc_gathers_the_remnant_in_the_middle_of_the_well(base_scene):
 
 def test_lysed_clumps_keep_islands_of_intact_stain_on_about_their_share_of_the_well(base_scene):
     scene, well = base_scene
-    lysed = scene.model_copy(update={
-        "plaques": (), "wells": tuple(w.model_copy(update={"lysed": w.id == well.id}) for w in scene.wells)})
+    lysed = one_lysed_well(scene, well)
     intact_floor = appearance.floor_transmittance(scene.model_copy(update={"plaques": ()}), TEXELS_PER_MM)
     inside = _texel_places(intact_floor.shape, well)[0] < 0.9 * scene.plate.well_radius_mm
     intact = -np.log(intact_floor[..., 1][inside].astype(np.float64))
@@ -260,8 +263,7 @@ def test_a_one_sided_mottled_band_is_strongest_toward_its_direction(base_scene):
 def test_lysed_paleness_moves_a_lysed_wells_remnant_to_the_pale_colour(base_scene):
     scene, well = base_scene
     other = next(w for w in scene.wells if w.id != well.id and not w.emptied)
-    lysed = scene.model_copy(update={
-        "plaques": (), "wells": tuple(w.model_copy(update={"lysed": w.id == well.id}) for w in scene.wells)})
+    lysed = one_lysed_well(scene, well)
     reach = int(3 * TEXELS_PER_MM)
 
     def window(floor: np.ndarray, w) -> np.ndarray:
@@ -289,8 +291,7 @@ def test_the_raster_renderer_draws_the_pale_lysed_colour(base_scene):
     from platesynth.render.raster import render_raster
 
     scene, well = base_scene
-    lysed = scene.model_copy(update={
-        "plaques": (), "wells": tuple(w.model_copy(update={"lysed": w.id == well.id}) for w in scene.wells)})
+    lysed = one_lysed_well(scene, well)
     pale = lysed.model_copy(update={"stain": lysed.stain.model_copy(
         update={"lysed_paleness": 1.0, "lysed_hue_deg": 240.0, "lysed_saturation": 0.5})})
     usual, paler = render_raster(lysed, (480, 360)), render_raster(pale, (480, 360))
@@ -338,8 +339,7 @@ def test_scratch_roughness_tears_each_edge_on_its_own(base_scene):
 
 def test_lysed_speckle_is_finer_than_the_grain(base_scene):
     scene, well = base_scene
-    lysed = scene.model_copy(update={
-        "plaques": (), "wells": tuple(w.model_copy(update={"lysed": w.id == well.id}) for w in scene.wells)})
+    lysed = one_lysed_well(scene, well)
     row, col = (int(c * TEXELS_PER_MM) for c in well.center_mm[::-1])
     reach = int(4 * TEXELS_PER_MM)
 
