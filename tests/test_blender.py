@@ -413,7 +413,7 @@ def test_the_smeared_top_edge_is_the_raster_renderers(pool):
         change = (after - before)[band]
         lighter[name], darker[name] = np.clip(change, 0, None).mean(), np.clip(change, None, 0).mean()
         assert np.abs(after - before)[~on_floor & (to_edge > 8 * pixel_mm)].mean() < 0.05  # nothing else moves
-    # levels, mean over the band: +1.61 and -1.58 measured in the raster renderer, +1.89 and -1.95 in Blender
+    # levels, mean over the band: +1.58 and -1.56 measured in the raster renderer, +1.87 and -1.92 in Blender
     assert lighter["raster"] > 1.0 and abs(lighter["raster"] + darker["raster"]) < 0.2 * lighter["raster"]
     assert abs(lighter["blender"] - lighter["raster"]) < 0.35 * lighter["raster"], (lighter, darker)
     assert abs(darker["blender"] - darker["raster"]) < 0.35 * lighter["raster"], (lighter, darker)

@@ -133,7 +133,7 @@ def plate_signed_distance(u, v, f):
 @njit(cache=True, nogil=True, inline="always")
 def top_ring(dist, radius, half_width, f):
     """Coverage of an outline of the walls' top edge, smeared over ``f.top_edge_blur`` mm (out of focus)."""
-    if f.top_edge_blur <= 0.0:
+    if f.top_edge_blur <= 0.0:  # the anti-aliased ring exactly, also where a pixel is wider than the line
         return ring(dist, radius, half_width, f.pixel_mm)
     return smeared_ring(dist, radius, half_width, math.hypot(f.pixel_mm, f.top_edge_blur))
 

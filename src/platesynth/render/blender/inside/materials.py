@@ -282,10 +282,8 @@ def rim_material(well_radius: float) -> bpy.types.Material:
     geometry = add(tree, "ShaderNodeNewGeometry")
     position, incoming = output(geometry, "Position"), output(geometry, "Incoming")
     centre = _attribute(tree, "rim_center", "Vector")
-    across = feed(tree, add(tree, "ShaderNodeSeparateXYZ"), Vector=vector_math(tree, "SUBTRACT", position, centre))
-    offset = math(tree, "SUBTRACT", math(tree, "SQRT", math(tree, "ADD", math(tree, "MULTIPLY", output(across, "X"), output(across, "X")),
-                                                                   math(tree, "MULTIPLY", output(across, "Y"), output(across, "Y")))),
-                  _attribute(tree, "ring_radius"))
+    across = vector_math(tree, "MULTIPLY", vector_math(tree, "SUBTRACT", position, centre), (1.0, 1.0, 0.0))  # in the ring's plane
+    offset = math(tree, "SUBTRACT", output(vector_math(tree, "LENGTH", across), "Value"), _attribute(tree, "ring_radius"))
     half_width = _attribute(tree, "ring_half_width")
     smear = math(tree, "MAXIMUM", _attribute(tree, "ring_smear"), 1e-3)  # a micrometre: float32 keeps the ratio
     half_smear = math(tree, "MULTIPLY", smear, 0.5)
