@@ -448,7 +448,7 @@ def test_the_walls_foot_below_the_floor_is_the_raster_renderers(pool):
     changes, both change them alike, and Blender changes nothing elsewhere."""
     size = (480, 360)
     settings = {"plaques.negative_plate": 1.0, "camera.distance_mm": 180.0, "wells.emptied": 0.0, "post.jpeg": 0.0,
-                "plate.top_edge_through_floor": 0.0, "plate.wall_band": 0.3}
+                "plate.top_edge_through_floor": 0.0, "plate.wall_band": 0.3, "plate.wall_slant": 0.0, "plate.wall_glints": 0.0}
     flat, lifted = (sample_scene(load_config("high", overrides=settings | {"plate.floor_height_mm": h}), 6)
                     for h in (0.0, 3.0))
     change = {}
@@ -480,3 +480,24 @@ def test_the_walls_tint_is_the_raster_renderers(pool):
         ratio[name] = after / before
     assert ratio["raster"][1] < 0.93 and ratio["raster"][2] > 0.97, ratio  # green darkens, blue hardly
     np.testing.assert_allclose(ratio["blender"], ratio["raster"], atol=0.015)
+
+
+@needs_bpy
+def test_the_walls_sheen_is_the_raster_renderers(pool):
+    """``plate.wall_slant`` and ``plate.wall_glints`` change the band's light around each well in Blender (the rim
+    material's Fourier series, about world angles) as in the raster renderer: the same change pixel by pixel over
+    the bands, brighter on the side away from the camera's axis."""
+    size = (480, 360)
+    settings = {"plaques.negative_plate": 1.0, "wells.emptied": 0.0, "post.jpeg": 0.0,
+                "plate.top_edge_through_floor": 0.0, "plate.floor_height_mm": 0.0}
+    plain, sheened = (sample_scene(load_config("high", overrides=settings | {"plate.wall_slant": slant,
+                                                                             "plate.wall_glints": glints}), 6)
+                      for slant, glints in ((0.0, 0.0), (0.25, 0.15)))
+    band = wall_band(sheened, size)
+    change = {}
+    for name, draw in (("raster", render_raster), ("blender", lambda s, z: render_blender(s, z, samples=SAMPLES, pool=pool))):
+        before, after = (draw(scene, size).image.astype(np.float64).mean(axis=2) for scene in (plain, sheened))
+        change[name] = (after - before)[band]
+    assert change["raster"].std() > 8.0, change["raster"].std()  # levels: 20.5 measured, 20.0 in Blender
+    assert np.corrcoef(change["raster"], change["blender"])[0, 1] > 0.9  # 0.999 measured
+    assert abs(change["blender"].std() - change["raster"].std()) < 0.15 * change["raster"].std()

@@ -9,7 +9,7 @@ from _geometry import distance_to_top_edges, pixel_centres_mm, wall_band
 from platesynth.errors import ParameterError, ShapeMismatchError
 from platesynth.render import postprocess as pp
 from platesynth.render import render
-from platesynth.render.appearance import stain_table, wall_tints
+from platesynth.render.appearance import stain_table, wall_sheen, wall_tints
 from platesynth.render.color import srgb_to_linear
 from platesynth.render.masks import clean_isolated_pixels
 from platesynth.render.raster import camera_view, parallax, render_raster, wells_in_view
@@ -308,7 +308,7 @@ def test_the_walls_foot_below_the_floor_shifts_the_band_outward():
     size = (640, 480)
     settings = {"plaques.negative_plate": 1.0, "camera.distance_mm": 180.0, "wells.emptied": 0.0, "post.jpeg": 0.0,
                 "post.clarity": 0.0, "post.bloom": 0.0, "post.noise": 0.0, "plate.top_edge_through_floor": 0.0,
-                "plate.wall_band": 0.3}
+                "plate.wall_band": 0.3, "plate.wall_slant": 0.0, "plate.wall_glints": 0.0}
     flat, lifted = (small_scene("high", 6, **settings, **{"plate.floor_height_mm": h}) for h in (0.0, 5.0))
     before, after = render(flat, size), render(lifted, size)
     assert np.array_equal(before.wells, after.wells) and np.array_equal(before.plaques, after.plaques)
@@ -361,3 +361,56 @@ def test_the_band_over_each_wall_takes_its_wells_stain_as_asked():
         np.testing.assert_allclose(ratio, tint, atol=0.01)
     away = ~wall_band(tinted, size, margin_px=-6.0)
     assert np.array_equal(before.image[away], after.image[away])
+
+
+def test_the_band_over_each_wall_changes_around_the_well_as_asked():
+    """``plate.wall_slant`` and ``plate.wall_glints`` change the band's light around each well by the Fourier series
+    of :func:`wall_sheen` (in linear light, pixel by pixel): brighter on the side away from the camera's axis, by
+    ``wall_slant`` at most, and unevenly by the glints; nothing else changes."""
+    size = (640, 480)
+    settings = {"plaques.negative_plate": 1.0, "wells.emptied": 0.0, "post.jpeg": 0.0, "post.clarity": 0.0,
+                "post.bloom": 0.0, "post.noise": 0.0, "post.sharpen": 0.0, "plate.top_edge_through_floor": 0.0,
+                "plate.wall_band": 0.0, "plate.floor_height_mm": 0.0}
+    plain, sheened = (small_scene("high", 6, **settings, **{"plate.wall_slant": slant, "plate.wall_glints": glints})
+                      for slant, glints in ((0.0, 0.0), (0.2, 0.1)))
+    before, after = render(plain, size), render(sheened, size)
+    assert np.array_equal(before.wells, after.wells)
+    view = camera_view(sheened, *size)
+    wells, _, _ = wells_in_view(sheened, view)
+    sheens = wall_sheen(sheened, wells, view.principal_mm, scene_textures(sheened).wall_glints)
+    u, v = pixel_centres_mm(view)
+    radius, wall = sheened.plate.well_radius_mm, sheened.plate.wall_mm
+    margin = 1.5 / view.px_per_mm
+    for well, (a1, b1, a2, b2, a3, b3) in zip(wells, sheens, strict=True):
+        du, dv = u - well.center_mm[0], v - well.center_mm[1]
+        off_centre = np.hypot(du, dv)
+        band = (off_centre > radius + margin) & (off_centre < radius + wall - margin)
+        t = np.arctan2(dv[band], du[band])
+        expected = 1.0 + sum(a * np.cos(k * t) + b * np.sin(k * t)
+                             for k, (a, b) in enumerate(((a1, b1), (a2, b2), (a3, b3)), start=1))
+        ratio = (srgb_to_linear(after.image[band] / 255.0) / srgb_to_linear(before.image[band] / 255.0)).mean(axis=1)
+        assert np.median(np.abs(ratio - expected)) < 0.01, well.label
+        outward = (du[band] * (well.center_mm[0] - view.principal_mm[0])
+                   + dv[band] * (well.center_mm[1] - view.principal_mm[1]))
+        assert ratio[outward > 0].mean() > ratio[outward < 0].mean() + 0.1, well.label  # 0.2 * 4 / pi less glints
+    away = ~wall_band(sheened, size, margin_px=-6.0)
+    assert np.array_equal(before.image[away], after.image[away])
+
+
+def test_the_walls_glints_are_as_uneven_as_asked_and_belong_to_their_wells():
+    """Around each well the glints' change has the sd ``plate.wall_glints`` (over many wells), and each well keeps
+    its own whatever the order the wells are passed in; ``plate.wall_slant`` adds that much along the direction
+    from the camera's axis to the well."""
+    scene = small_scene("high", 3, **{"plate.format": 96, "plate.wall_glints": 0.1, "plate.wall_slant": 0.0})
+    glints = scene_textures(scene).wall_glints
+    wells = list(scene.wells)
+    sheens = wall_sheen(scene, wells, (60.0, 40.0), glints)
+    sd_around = np.sqrt((sheens**2).sum(axis=1) / 2.0)  # each well's sd over its angle
+    assert np.sqrt((sd_around**2).mean()) == pytest.approx(0.1, rel=0.1)
+    np.testing.assert_array_equal(wall_sheen(scene, wells[::-1], (60.0, 40.0), glints), sheens[::-1])
+    slanted = scene.model_copy(update={"plate_look": scene.plate_look.model_copy(update={"wall_slant": 0.2})})
+    axis = (60.0, 40.0)
+    added = wall_sheen(slanted, wells, axis, glints) - sheens
+    outward = np.array([w.center_mm for w in wells]) - axis
+    np.testing.assert_allclose(added[:, :2], 0.2 * outward / np.hypot(*outward.T)[:, None], atol=1e-12)
+    assert not added[:, 2:].any()

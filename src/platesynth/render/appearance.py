@@ -37,6 +37,7 @@ from platesynth.render.textures import (
     FUZZ_CELL_MM,
     MOTTLE_CELL_MM,
     RESIDUAL_CELL_MM,
+    WALL_GLINT_HARMONICS,
     SceneTextures,
     plate_grid_index,
     scene_textures,
@@ -131,6 +132,12 @@ WELL_DTYPE = np.dtype(
         ("wall_r", np.float64),  # the linear RGB factor on the band over its wall (wall_tints)
         ("wall_g", np.float64),
         ("wall_b", np.float64),
+        ("sheen_a1", np.float64),  # the band's relative brightness change around the well (wall_sheen)
+        ("sheen_b1", np.float64),
+        ("sheen_a2", np.float64),
+        ("sheen_b2", np.float64),
+        ("sheen_a3", np.float64),
+        ("sheen_b3", np.float64),
         ("density", np.float64),
         ("centre_gradient", np.float64),
         ("centre_cos", np.float64),  # direction of the elongated centre
@@ -195,14 +202,15 @@ PLAQUE_DTYPE = np.dtype(
 
 
 def well_table(wells: list[Well], top_centres: np.ndarray, foot_centres: np.ndarray, tints: np.ndarray,
-               well_offsets: np.ndarray) -> np.ndarray:
+               sheens: np.ndarray, well_offsets: np.ndarray) -> np.ndarray:
     """The :data:`WELL_DTYPE` rows of ``wells`` (plate row-major order), the centres of their walls' top edges and
-    feet, the tints of their walls' bands (:func:`wall_tints`) and their noise shifts."""
+    feet, the tints of their walls' bands (:func:`wall_tints`), their changes around the well (:func:`wall_sheen`)
+    and their noise shifts."""
     table = np.zeros(len(wells), dtype=WELL_DTYPE)
     for i, w in enumerate(wells):
         angle = math.radians(w.stain.centre_angle_deg)
         table[i] = (
-            w.id, *w.center_mm, *top_centres[i], *foot_centres[i], *tints[i], w.stain.density,
+            w.id, *w.center_mm, *top_centres[i], *foot_centres[i], *tints[i], *sheens[i], w.stain.density,
             w.stain.centre_gradient, math.cos(angle), math.sin(angle), *w.stain.centre_offset_mm,
             w.stain.drying_detail, float(w.lysed), float(w.emptied), *well_offsets[i],
         )
@@ -221,6 +229,26 @@ def wall_tints(scene: Scene, wells: list[Well], stain: np.ndarray) -> np.ndarray
                 density = well.stain.density * (stain["lysed_density"] if well.lysed else 1.0)
                 tints[i] = np.power(stain_transmittance(density, stain, float(well.lysed)), share)
     return tints
+
+
+def wall_sheen(scene: Scene, wells: list[Well], axis_mm: tuple[float, float], glints: np.ndarray) -> np.ndarray:
+    """The relative brightness change of the band over each wall of ``wells`` (in any order) around its well, as
+    Fourier coefficients ``(n, 6)``: ``(a1, b1, a2, b2, a3, b3)`` of ``sum_k a_k cos(k t) + b_k sin(k t)``,
+    ``t`` the angle in plate coordinates (from +x towards +y) about the well's centre.
+
+    The first harmonic holds ``plate_look.wall_slant`` along the direction from the camera's axis (the plate point
+    ``axis_mm`` under it) to the well: the thick wall, seen at a slant, is brighter on that side. Each harmonic adds
+    the well's glints (its unit-sd row of :attr:`~platesynth.render.textures.SceneTextures.wall_glints`,
+    ``glints``), scaled so that their sd around the well is ``plate_look.wall_glints``.
+    """
+    look = scene.plate_look
+    rows = [plate_grid_index(scene.plate, w.center_mm) for w in wells]
+    sheens = glints[rows] * (look.wall_glints / math.sqrt(WALL_GLINT_HARMONICS))
+    if look.wall_slant != 0.0:
+        outward = np.array([w.center_mm for w in wells], dtype=np.float64).reshape(-1, 2) - np.asarray(axis_mm)
+        length = np.hypot(outward[:, 0], outward[:, 1])[:, None]
+        sheens[:, :2] += look.wall_slant * np.divide(outward, length, out=np.zeros_like(outward), where=length > 0)
+    return sheens
 
 
 def stain_table(scene: Scene, textures: SceneTextures) -> np.ndarray:
@@ -726,8 +754,9 @@ def floor_transmittance(scene: Scene, texels_per_mm: float, textures: SceneTextu
     content = draw_well_content(scene, grid, wells, centres, plate.well_radius_mm, textures)
     out = np.empty((grid.height, grid.width, 3), dtype=np.float32)
     untinted = np.ones((len(wells), 3))  # the floors only: the walls' bands are films of their own in Blender
+    even = np.zeros((len(wells), 2 * WALL_GLINT_HARMONICS))
     _bake_floor(1.0 / grid.px_per_mm, plate.a1_x_mm, plate.a1_y_mm, plate.pitch_mm, plate.rows, plate.cols,
-                plate.well_radius_mm, well_table(wells, centres, centres, untinted, textures.well_offsets),
+                plate.well_radius_mm, well_table(wells, centres, centres, untinted, even, textures.well_offsets),
                 stain_table(scene, textures),
                 textures.low_grid, fibre_grid_or_empty(textures), textures.fine_tile, textures.mottle_tile,
                 textures.residual_tile, content.clearing, content.rim, content.scratched, content.specks, out)

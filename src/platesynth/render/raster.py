@@ -191,6 +191,7 @@ def render_raster(scene: Scene, size: tuple[int, int] = (1024, 768)) -> RenderRe
         view.px_to_plate, _frame(scene, view, top_radius, foot_scale), np.asarray(srgb_to_linear(bg.color_rgb)),
         np.asarray(bg.panel_mm, dtype=np.float64), blots,
         appearance.well_table(wells, top_centres, foot_centres, appearance.wall_tints(scene, wells, stain[0]),
+                              appearance.wall_sheen(scene, wells, view.principal_mm, textures.wall_glints),
                               textures.well_offsets), stain,
         plate_relief(scene.plate, k), marker_ink(scene, k), k, textures.low_grid,
         appearance.fibre_grid_or_empty(textures), desk_grid, desk_cell_px, textures.fine_tile,

@@ -139,11 +139,29 @@ def top_ring(dist, radius, half_width, f):
 
 
 @njit(cache=True, nogil=True, inline="always")
-def plastic(foot_dist, top_dist, disc, signed, relief, f):
+def band_sheen(well, du, dv, dist):
+    """The relative brightness change of the band over ``well``'s wall at ``(du, dv)`` from the well's centre, at
+    distance ``dist`` (the Fourier series of
+    :func:`~platesynth.render.appearance.wall_sheen`, its three harmonics)."""
+    if dist <= 0.0:
+        return 0.0
+    c1 = du / dist
+    s1 = dv / dist
+    c2 = c1 * c1 - s1 * s1
+    s2 = 2.0 * c1 * s1
+    c3 = c1 * c2 - s1 * s2
+    s3 = s1 * c2 + c1 * s2
+    return (well.sheen_a1 * c1 + well.sheen_b1 * s1 + well.sheen_a2 * c2 + well.sheen_b2 * s2
+            + well.sheen_a3 * c3 + well.sheen_b3 * s3)
+
+
+@njit(cache=True, nogil=True, inline="always")
+def plastic(foot_dist, top_dist, disc, signed, relief, sheen, f):
     """Share of the light the plastic passes: the floor or the deck, the walls' band and outlines, the embossing
     (``relief``) and the skirt; ``disc`` is the pixel's coverage by the well's floor, ``foot_dist`` its distance from
     the centre of the walls' foot as the camera sees it. Where the foot's opening shows no floor, the camera sees
-    the inside of the wall below the floor: it takes the band's brightness. Seen from below, the walls' top edge
+    the inside of the wall below the floor: it takes the band's brightness, changed by ``sheen`` (relative) where
+    the pixel lies (:func:`band_sheen`). Seen from below, the walls' top edge
     lies behind the floor: only ``top_edge_through_floor`` of its outlines shows through it. Returns the share
     passed and the pixel's coverage by the band (0..1)."""
     behind_layer = 1.0 - disc * (1.0 - f.top_edge_through_floor) if f.from_below else 1.0
@@ -162,7 +180,7 @@ def plastic(foot_dist, top_dist, disc, signed, relief, f):
     skirt_shade = 1.0 - SKIRT_DARKENING * clip01((signed + f.skirt) / f.skirt)
     # the thick plastic between the wells passes less light than a well's thin bottom
     passing = (f.transmittance * (1.0 - disc) + FLOOR_TRANSMITTANCE * disc) * (
-        1.0 + f.wall_band * band - f.rim_darkness * min(outlines, 1.0))
+        1.0 + (f.wall_band + sheen) * band - f.rim_darkness * min(outlines, 1.0))
     return passing * ((1.0 - relief) * skirt_shade), band
 
 
@@ -265,7 +283,8 @@ def shade(
                     wells_mask[y, x] = np.uint8(well.id)
                 disc = clip01((f.radius - dist) / f.pixel_mm + 0.5)
                 relief, ink_r, ink_g, ink_b = relief_and_ink(u, v, texels_per_mm, relief_map, ink, f.label_strength)
-                passing, band = plastic(foot_dist, top_dist, disc, signed, relief, f)
+                sheen = band_sheen(well, fu, fv, foot_dist)
+                passing, band = plastic(foot_dist, top_dist, disc, signed, relief, sheen, f)
                 # the band takes a share of its well's stain (a factor of 1 where the share is 0)
                 wall_r = 1.0 - band * (1.0 - well.wall_r)
                 wall_g = 1.0 - band * (1.0 - well.wall_g)

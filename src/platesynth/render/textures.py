@@ -31,6 +31,8 @@ MOTTLE_CELL_MM = 0.06
 """Cell of the patchy cells in the mottled band along a well's rim (the mottle tile)."""
 WELL_OFFSET_RANGE_MM = 100.0
 """Each well reads the periodic tiles shifted by its own offset, uniform in [0, this)."""
+WALL_GLINT_HARMONICS = 3
+"""The uneven brightness around a well's wall is a Fourier series of this many angular harmonics (1, 2, 3)."""
 
 
 def plate_grid_index(plate: PlateGeometry, center_mm: tuple[float, float]) -> int:
@@ -64,6 +66,9 @@ class SceneTextures:
     fine_tile : 256 x 256 tile of the drying texture and of the plaques' fray.
     residual_tile : 128 x 128 tile of the stain left inside plaques.
     mottle_tile : 256 x 256 tile of the patchy cells along the rims.
+    wall_glints : (n_wells, 2 * WALL_GLINT_HARMONICS) array
+        Each well's unit-sd Fourier coefficients ``(a1, b1, a2, b2, ...)`` of its wall's uneven brightness, rows as
+        in ``well_offsets``.
     """
 
     well_offsets: np.ndarray
@@ -73,6 +78,7 @@ class SceneTextures:
     fine_tile: np.ndarray
     residual_tile: np.ndarray
     mottle_tile: np.ndarray
+    wall_glints: np.ndarray
 
 
 def scene_textures(scene: Scene) -> SceneTextures:
@@ -94,4 +100,5 @@ def scene_textures(scene: Scene) -> SceneTextures:
         fine_tile=noise_grid(scene_rng(seed, "fine"), (256, 256), 0.8, periodic=True),
         residual_tile=noise_grid(scene_rng(seed, "residual"), (128, 128), 1.2, periodic=True),
         mottle_tile=noise_grid(scene_rng(seed, "mottle"), (256, 256), 1.5, periodic=True),
+        wall_glints=scene_rng(seed, "wall_glint_harmonics").standard_normal((len(scene.wells), 2 * WALL_GLINT_HARMONICS)),
     )

@@ -72,6 +72,12 @@ class PlateConfig(Section):
     wall_stain: Dist = number(0.0, 0.0, 0.2, "",
                               "share of its well's stain the band over a wall takes: light that passed the stained "
                               "floor and is refracted into the wall, seen end-on (a stain-tinted ring around each well)")
+    wall_slant: Dist = number(0.0, -0.5, 0.5, "",
+                              "how much brighter the band over a well's wall is on its side away from the camera's "
+                              "axis than on the other, relative (the wall's inside seen at a slant through the floor)")
+    wall_glints: Dist = number(0.0, 0.0, 0.5, "",
+                               "sd of the band's uneven brightness around each well, relative (light refracted and "
+                               "reflected by the thick wall: glints and shadows that change around the well)")
 
 
 class CameraConfig(Section):

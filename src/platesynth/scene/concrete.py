@@ -66,6 +66,9 @@ class PlateLook(_Concrete):
     floor_height_mm: float = Field(
         0.0, description="height of the wells' floors above the foot of their walls, mm (parallax of the foot)")
     wall_stain: float = Field(0.0, description="share of its well's stain the band over a wall takes, 0..1")
+    wall_slant: float = Field(
+        0.0, description="how much brighter the band over a wall is on its side away from the camera's axis, relative")
+    wall_glints: float = Field(0.0, description="sd of the band's uneven brightness around each well, relative")
 
 
 class Stain(_Concrete):

@@ -152,6 +152,8 @@ def sample_scene(config: SceneConfig, seed: int) -> Scene:
         floor_height_mm=c.plate.draw("floor_height_mm", scene_rng(seed, "plate_floor")),
         wall_stain=c.plate.draw("wall_stain", scene_rng(seed, "wall_stain")),
         top_edge_blur_mm=c.plate.draw("top_edge_blur_mm", scene_rng(seed, "top_edge_blur")),
+        wall_slant=c.plate.draw("wall_slant", scene_rng(seed, "wall_slant")),
+        wall_glints=c.plate.draw("wall_glints", scene_rng(seed, "wall_glints")),
     )
 
     tilt = c.camera.draw("tilt_deg", rng)

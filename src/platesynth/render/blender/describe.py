@@ -26,7 +26,7 @@ from typing import Any
 import numpy as np
 
 from platesynth.errors import RenderError
-from platesynth.render.appearance import floor_texels_per_mm, floor_transmittance, stain_table, wall_tints
+from platesynth.render.appearance import floor_texels_per_mm, floor_transmittance, stain_table, wall_sheen, wall_tints
 from platesynth.render.camera import REFERENCE_WIDTH, View, camera_view
 from platesynth.render.color import light_colour, srgb_to_linear
 from platesynth.render.raster import plate_relief, texels_per_mm
@@ -120,6 +120,8 @@ def describe_scene(scene: Scene, size: tuple[int, int], texture_dir: str | Path)
             "pixel_mm": 1.0 / view.px_per_mm,
             # the band over each wall (scene.wells' order): the raster renderer's linear factors
             "wall_tints": wall_tints(scene, list(scene.wells), stain_table(scene, noise)[0]).tolist(),
+            # and its brightness change around the well, (a1, b1, a2, b2, a3, b3) about plate angles
+            "wall_sheens": wall_sheen(scene, list(scene.wells), view.principal_mm, noise.wall_glints).tolist(),
         },
     }
 

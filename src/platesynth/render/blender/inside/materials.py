@@ -277,13 +277,17 @@ def rim_material(well_radius: float) -> bpy.types.Material:
     """The walls' bands and outlines: ink (the ``ink`` attribute) over the share of the ring that a ring of
     ``ring_half_width`` about ``ring_radius`` smeared over ``ring_smear`` covers (as the raster renderer's
     ``smeared_ring``; all of it without a smear), faded towards white by the share ``rim_hidden_inside`` where the ray
-    crossed the floors' plane (``z = 0``) within ``well_radius`` of the ring's ``rim_center``."""
+    crossed the floors' plane (``z = 0``) within ``well_radius`` of the ring's ``rim_center``. The ink changes around
+    the ring by the factor ``1 + sum_k a_k cos(k t) + b_k sin(k t)`` (the raster renderer's ``band_sheen``), ``t``
+    the world angle about the centre, ``(a1, a2, a3)`` the ``sheen_cosines`` and ``(b1, b2, b3)`` the
+    ``sheen_sines``."""
     material, tree, out = _new_material("platesynth.rims")
     geometry = add(tree, "ShaderNodeNewGeometry")
     position, incoming = output(geometry, "Position"), output(geometry, "Incoming")
     centre = _attribute(tree, "rim_center", "Vector")
     across = vector_math(tree, "MULTIPLY", vector_math(tree, "SUBTRACT", position, centre), (1.0, 1.0, 0.0))  # in the ring's plane
     offset = math(tree, "SUBTRACT", output(vector_math(tree, "LENGTH", across), "Value"), _attribute(tree, "ring_radius"))
+    sheen = _sheen(tree, across)
     half_width = _attribute(tree, "ring_half_width")
     smear = math(tree, "MAXIMUM", _attribute(tree, "ring_smear"), 1e-3)  # a micrometre: float32 keeps the ratio
     half_smear = math(tree, "MULTIPLY", smear, 0.5)
@@ -292,7 +296,9 @@ def rim_material(well_radius: float) -> bpy.types.Material:
     coverage = math(tree, "DIVIDE", math(tree, "MAXIMUM", overlap, 0.0), smear)
     coverage.use_clamp = True
     covered = add(tree, "ShaderNodeMix", data_type="RGBA", blend_type="MIX", clamp_result=False)
-    feed(tree, covered, Factor=coverage, A=(1.0, 1.0, 1.0, 1.0), B=_attribute(tree, "ink", "Color"))
+    sheened = feed(tree, add(tree, "ShaderNodeVectorMath", operation="SCALE"), Vector=_attribute(tree, "ink", "Color"),
+                   Scale=math(tree, "ADD", sheen, 1.0))
+    feed(tree, covered, Factor=coverage, A=(1.0, 1.0, 1.0, 1.0), B=output(sheened, "Vector"))
     # the point where the ray (towards the camera along ``incoming``) crossed the floors' plane
     to_floor = math(tree, "DIVIDE", output(feed(tree, add(tree, "ShaderNodeSeparateXYZ"), Vector=position), "Z"), output(feed(tree, add(tree, "ShaderNodeSeparateXYZ"), Vector=incoming), "Z"))
     back = feed(tree, add(tree, "ShaderNodeVectorMath", operation="SCALE"), Vector=incoming, Scale=to_floor)
@@ -303,6 +309,22 @@ def rim_material(well_radius: float) -> bpy.types.Material:
     feed(tree, ink, Factor=through_floor, A=output(covered, "Result"), B=(1.0, 1.0, 1.0, 1.0))
     link(tree, feed(tree, add(tree, "ShaderNodeBsdfTransparent"), Color=output(ink, "Result")), out)
     return material
+
+
+def _sheen(tree: bpy.types.NodeTree, across: Any) -> bpy.types.NodeSocket:
+    """``sum_k a_k cos(k t) + b_k sin(k t)`` for k = 1, 2, 3: ``t`` the angle of the in-plane vector ``across``,
+    ``a`` and ``b`` the ``sheen_cosines`` and ``sheen_sines`` attributes."""
+    unit = feed(tree, add(tree, "ShaderNodeSeparateXYZ"), Vector=output(vector_math(tree, "NORMALIZE", across), "Vector"))
+    c1, s1 = output(unit, "X"), output(unit, "Y")
+    c2 = math(tree, "SUBTRACT", math(tree, "MULTIPLY", c1, c1), math(tree, "MULTIPLY", s1, s1))
+    s2 = math(tree, "MULTIPLY", math(tree, "MULTIPLY", c1, s1), 2.0)
+    c3 = math(tree, "SUBTRACT", math(tree, "MULTIPLY", c1, c2), math(tree, "MULTIPLY", s1, s2))
+    s3 = math(tree, "ADD", math(tree, "MULTIPLY", s1, c2), math(tree, "MULTIPLY", c1, s2))
+    cosines = feed(tree, add(tree, "ShaderNodeCombineXYZ"), X=c1, Y=c2, Z=c3)
+    sines = feed(tree, add(tree, "ShaderNodeCombineXYZ"), X=s1, Y=s2, Z=s3)
+    along_cosines = output(vector_math(tree, "DOT_PRODUCT", _attribute(tree, "sheen_cosines", "Vector"), cosines), "Value")
+    along_sines = output(vector_math(tree, "DOT_PRODUCT", _attribute(tree, "sheen_sines", "Vector"), sines), "Value")
+    return math(tree, "ADD", along_cosines, along_sines)
 
 
 def mask_material() -> bpy.types.Material:

@@ -152,7 +152,8 @@ def _rims(
     below the floors; where its opening shows no floor, the inside of the wall below the floor takes the band's
     brightness (a disc at the foot, hidden where the ray passes a floor). Seen from below, all but the plate look's
     ``top_edge_through_floor`` of the top edge's outlines is hidden where the ray has passed a well's floor (the
-    raster renderer's ``behind_layer``). The band and the disc take their well's tint (``view["wall_tints"]``)."""
+    raster renderer's ``behind_layer``). The band and the disc take their well's tint (``view["wall_tints"]``) and
+    its brightness change around the well (``view["wall_sheens"]``)."""
     plate_data = scene_data["plate"]
     radius, wall, depth = (float(plate_data[k]) for k in ("well_radius_mm", "wall_mm", "well_depth_mm"))
     foot = -float(scene_data["plate_look"]["floor_height_mm"])
@@ -179,6 +180,10 @@ def _rims(
     n = len(centres)
     tints = np.asarray(view["wall_tints"], dtype=np.float64)
     inks = np.concatenate([r[4] * (tints if r[6] else np.ones((n, 3))) for r in rings])
+    # the sheen's Fourier coefficients, relative to the band's ink, about world angles (y flipped: sines negated)
+    sheens = np.asarray(view["wall_sheens"], dtype=np.float64).reshape(n, 3, 2) / band * np.array([1.0, -1.0])
+    cosines = np.concatenate([sheens[:, :, 0] * r[6] for r in rings])
+    sines = np.concatenate([sheens[:, :, 1] * r[6] for r in rings])
     rims = geometry.annuli(
         "platesynth.rims",
         np.concatenate([centres] * len(rings)),
@@ -192,6 +197,8 @@ def _rims(
             "ring_radius": np.repeat([r[0] for r in rings], n),
             "ring_half_width": np.repeat([r[1] for r in rings], n),
             "ring_smear": np.repeat([r[2] for r in rings], n),
+            "sheen_cosines": cosines,
+            "sheen_sines": sines,
         },
     )
     rims.data.materials.append(materials.rim_material(radius))
