@@ -260,6 +260,29 @@ def test_a_one_sided_mottled_band_is_strongest_toward_its_direction(base_scene):
     assert turned_opposite == pytest.approx(facing, rel=0.3) and turned_facing < 0.05 * facing
 
 
+def test_a_patchy_mottled_band_comes_and_goes_along_the_rim(base_scene):
+    """``stain.rim_mottle_patches`` 1 leaves stretches of the rim bare of the mottle (half or more of it), where 0 pales
+    every stretch; where the patches keep it, it is as pale as without them."""
+    scene, well = base_scene
+    radius = scene.plate.well_radius_mm
+    plain, distance, angle = _blue_density_by_place(scene, well, rim_mottle=0.0)
+    band = (distance > radius - 1.0) & (distance < radius)
+    sectors = np.floor((angle + np.pi) / (2.0 * np.pi) * 36).astype(int) % 36  # 36 stretches of about 2 mm
+
+    def paling(patches: float) -> np.ndarray:
+        """How much paler the band is than without the mottle, in each of the 36 stretches."""
+        mottled, _, _ = _blue_density_by_place(scene, well, rim_mottle=0.6, rim_mottle_mm=1.0,
+                                                rim_mottle_patches=patches)
+        loss = 1.0 - mottled[band] / plain[band]
+        return np.array([loss[sectors[band] == k].mean() for k in range(36)])
+
+    even, patchy = paling(0.0), paling(1.0)
+    assert even.min() > 0.5 * even.mean()  # every stretch paled (0.13 at least, 0.19 on average, measured)
+    bare = patchy < 0.2 * even.mean()
+    assert 0.2 < bare.mean() < 0.85, bare.mean()  # 0.72 of the stretches measured
+    assert np.all(patchy <= even + 1e-9) and patchy.max() > 0.8 * even.mean()
+
+
 def test_lysed_paleness_moves_a_lysed_wells_remnant_to_the_pale_colour(base_scene):
     scene, well = base_scene
     other = next(w for w in scene.wells if w.id != well.id and not w.emptied)
@@ -306,17 +329,23 @@ def test_the_raster_renderer_draws_the_pale_lysed_colour(base_scene):
     np.testing.assert_allclose(usual.image[others].mean(axis=0), paler.image[others].mean(axis=0), atol=0.01)
 
 
-def scratch_widths(scene, roughness: float) -> tuple[np.ndarray, np.ndarray]:
-    """Widths (mm) of the scraped band of one straight 4 mm scratch on either side of its centre line, along it in
-    0.05 mm steps."""
+def one_scratch(scene, **artifacts):
+    """``scene`` with one straight scratch 4 mm long and 0.6 mm wide down the middle of its sixth well (and no
+    plaques), the scratches' other settings ``artifacts``; and that well."""
     well = scene.wells[5]
     x, y = well.center_mm
     scratch = Scratch(well=well.id, points_mm=((x, y - 2.0), (x, y), (x, y + 2.0)), width_mm=0.6)
-    artifacts = Artifacts(scratches=(scratch,), scratch_roughness=roughness)
-    scene = scene.model_copy(update={"artifacts": artifacts, "plaques": ()})
+    return scene.model_copy(update={"artifacts": Artifacts(scratches=(scratch,), **artifacts), "plaques": ()}), well
+
+
+def scratch_widths(scene, roughness: float) -> tuple[np.ndarray, np.ndarray]:
+    """Widths (mm) of the scraped band of one straight 4 mm scratch on either side of its centre line, along it in
+    0.05 mm steps."""
+    scene, well = one_scratch(scene, scratch_roughness=roughness)
+    x, y = well.center_mm
     scraped = well_content(scene).scratched
     rows = np.arange(int((y - 1.6) * TEXELS_PER_MM), int((y + 1.6) * TEXELS_PER_MM))
-    band = scraped[rows] / appearance.SCRATCH_CLEARING
+    band = scraped[rows] / scene.artifacts.scratch_clearing
     centre = x * TEXELS_PER_MM  # texel j covers [j, j + 1) / TEXELS_PER_MM
     columns = np.arange(band.shape[1])
     left_share = np.clip(centre - columns, 0.0, 1.0)  # the share of each texel left of the centre line
@@ -335,6 +364,43 @@ def test_scratch_roughness_tears_each_edge_on_its_own(base_scene):
         assert edge.mean() == pytest.approx(0.3, abs=0.05)
     # a torn strip, not a chain of beads: the two edges swell and narrow apart
     assert abs(np.corrcoef(left, right)[0, 1]) < 0.5
+
+
+def test_scratches_scrape_as_much_as_asked_with_soft_edges_and_hazed_light(base_scene):
+    """``artifacts.scratch_clearing`` is the share of the stain a scratch scrapes off, ``scratch_softness_mm`` widens
+    the fade of its edges about the same outline (the scraped area kept), and ``scratch_haze`` dims the light through
+    the scratched plastic, every channel alike, by that share where the scratch covers the layer."""
+    scene, _ = base_scene
+    texel = 1.0 / TEXELS_PER_MM
+
+    def scraped(**artifacts):
+        variant, well = one_scratch(scene, **artifacts)
+        x, y = well.center_mm
+        row = int(y * TEXELS_PER_MM)
+        return variant, well, well_content(variant).scratched[row - 4: row + 4]  # across the middle of the scratch
+
+    _, _, sharp = scraped(scratch_clearing=0.95)
+    _, _, half = scraped(scratch_clearing=0.5)
+    assert sharp.max() == pytest.approx(0.95) and half.max() == pytest.approx(0.5)
+    np.testing.assert_allclose(half, sharp * 0.5 / 0.95, atol=1e-6)
+    _, _, soft = scraped(scratch_clearing=0.95, scratch_softness_mm=0.3)
+
+    def fading(band: np.ndarray) -> float:
+        """Millimetres of the fade across the scratch, both edges together."""
+        return float(((band > 0.05) & (band < 0.9)).sum(axis=1).mean() * texel)
+
+    assert fading(sharp) < 2.5 * texel and fading(soft) > 0.3  # measured: 0.1 mm (a texel an edge) against 0.5
+    assert soft.sum(axis=1).mean() * texel == pytest.approx(sharp.sum(axis=1).mean() * texel, abs=0.03)  # 0.57 mm
+    clear, well, _ = scraped(scratch_clearing=0.95)
+    hazed, _, _ = scraped(scratch_clearing=0.95, scratch_haze=0.4)
+    x, y = well.center_mm
+    middle = np.s_[int((y - 1.0) * TEXELS_PER_MM): int((y + 1.0) * TEXELS_PER_MM), int(x * TEXELS_PER_MM)]
+    ratio = appearance.floor_transmittance(hazed, TEXELS_PER_MM)[middle] / appearance.floor_transmittance(
+        clear, TEXELS_PER_MM)[middle]
+    np.testing.assert_allclose(ratio, 0.6, atol=0.01)  # the scratch covers the middle: 1 - 0.4, grey
+    beside = np.s_[int(y * TEXELS_PER_MM), int((x + 1.0) * TEXELS_PER_MM)]
+    np.testing.assert_array_equal(appearance.floor_transmittance(hazed, TEXELS_PER_MM)[beside],
+                                  appearance.floor_transmittance(clear, TEXELS_PER_MM)[beside])
 
 
 def test_lysed_speckle_is_finer_than_the_grain(base_scene):

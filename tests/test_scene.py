@@ -47,11 +47,11 @@ def test_presets_load_and_sample_json_roundtrip(preset):
 # sha256 of sample_scene(load_config(preset), 3).model_dump_json(): sampling must not change without intent (a change
 # here changes every dataset rendered from these presets). Update only for a deliberate change of the sampling.
 SCENE_SHA256_SEED3 = {
-    "diverse": "7ddc23c18d6bd82579334495d7e5a9f2e5fb1b1f108b7558689ef71cbe0cf671",
-    "high": "2298ff758615c7370cde8b9339930cc85dbc9ee2bfb463c0128ac95b786262df",
-    "lightbox12": "de24ae7af3c955949eb2829c7557d0e40eca0ebb4733f6a7bb30e9cd6dbc45ae",
-    "low": "e94be8bfbc61162bfef3e5e57c8ec21e159f883722c8647df403ffa9c82b372f",
-    "medium": "b95f3e0ae3e18dffb0916ec45b6cfbbc94b09271688ee7760d61a6414a326e4a",
+    "diverse": "1cca9d9d92418c278ee9065a0e3d1618d5e933a6b3b770b228d90740fa8e110a",
+    "high": "0efa8aa6869ba73c2dc3d7f47684762f4f7fd83430e84dc77c22c8a3a9c57d55",
+    "lightbox12": "bd084c1818fe7cf8bcafb44aa05df061911c80b3393b8cae2b3b6ac863c24ac7",
+    "low": "88ed6d993eec02e83a778029ece0d5c2217003d0aac7d5a73566d7150426c384",
+    "medium": "838f0a4eae4eefc70558ff6627b3877d77bdb1e0e619ad6d3de89ce21eab3aa0",
 }
 
 
@@ -403,6 +403,9 @@ def test_lysed_paleness_draws_the_remnants_colour_from_the_pale_palette_and_noth
     ("post", {"post.noise_grain_px": [0.8, 1.4]}, {"post.noise_grain_px": 0.0}),
     ("plate_look", {"plate.wall_slant": [0.05, 0.15], "plate.wall_glints": [0.05, 0.2]},
      {"plate.wall_slant": 0.0, "plate.wall_glints": 0.0}),
+    ("artifacts", {"artifacts.scratch_clearing": [0.8, 0.9], "artifacts.scratch_softness_mm": [0.05, 0.15],
+                   "artifacts.scratch_haze": [0.2, 0.4]},
+     {"artifacts.scratch_clearing": 0.95, "artifacts.scratch_softness_mm": 0.0, "artifacts.scratch_haze": 0.0}),
 ])
 def test_a_parameter_added_later_is_drawn_beside_the_others(part, drawn, fixed):
     for seed in range(4):

@@ -58,6 +58,11 @@ MOTTLE_COVER = 0.5
 """Share of the mottled band's area covered by paler patches (the mottle tile above its median)..."""
 MOTTLE_EDGE = 0.35
 """...with patch edges this soft (unit-sd noise over which a patch fades in)."""
+RIM_PATCH_SHIFT = 29.0
+"""``stain.rim_mottle_patches`` gates the band where the unevenness grid, read this many cells to the right (apart
+from the stain's blotches and the lysed cloud), stands above 0..."""
+RIM_PATCH_EDGE = 0.3
+"""...fading in over this much of the grid's unit sd."""
 MENISCUS_MM = 0.2
 """The dark line of ``stain.meniscus`` fades over this distance inward from the rim."""
 
@@ -112,8 +117,6 @@ RESIDUAL_MEAN, RESIDUAL_SPREAD, RESIDUAL_MAX = 0.03, 0.03, 0.2
 """Share of the stain left inside a cleared plaque: mean, noise amplitude (unit-sd residual tile) and cap."""
 
 # ---- marks
-SCRATCH_CLEARING = 0.95
-"""A scratch scrapes off this share of the stain under it."""
 RAGGED_SCALES = ((0.9, 0.5), (0.3, 0.3), (0.1, 0.2))
 """Each edge of a ragged scratch lies off its centre line by a 1-D value noise along it, the sum of these octaves,
 (lattice spacing in mm, weight) each: a slow swelling, torn steps and fine jags. The two edges and every scratch
@@ -165,6 +168,7 @@ STAIN_DTYPE = np.dtype(
         ("rim_mottle_side", np.float64),
         ("rim_mottle_cos", np.float64),  # the direction of the side where the band is strongest
         ("rim_mottle_sin", np.float64),
+        ("rim_mottle_patches", np.float64),
         ("meniscus", np.float64),
         ("lysed_density", np.float64),
         ("lysed_residue", np.float64),
@@ -180,6 +184,7 @@ STAIN_DTYPE = np.dtype(
         ("lysed_absorbance_r", np.float64),  # the same for what a lysed well keeps (stain.lysed_paleness)
         ("lysed_absorbance_g", np.float64),
         ("lysed_absorbance_b", np.float64),
+        ("scratch_shade", np.float64),  # light the scratched plastic loses per unit of scraped stain
     ]
 )
 """The plate-wide stain (a one-row array, :func:`stain_table`)."""
@@ -264,10 +269,18 @@ def stain_table(scene: Scene, textures: SceneTextures) -> np.ndarray:
     table[0] = (stain.unevenness, textures.low_cell_mm, stain.centre_elongation, stain.rim_clearing_mm,
                 stain.translucency, stain.rim_mottle, stain.rim_mottle_mm, stain.rim_mottle_side,
                 math.cos(math.radians(stain.rim_mottle_angle_deg)), math.sin(math.radians(stain.rim_mottle_angle_deg)),
-                stain.meniscus, stain.lysed_density, stain.lysed_residue, stain.lysed_strands,
+                stain.rim_mottle_patches, stain.meniscus, stain.lysed_density, stain.lysed_residue, stain.lysed_strands,
                 stain.lysed_grain, stain.lysed_speckle, stain.lysed_disc, stain.lysed_disc_radius, clump_level(stain.lysed_clumps), *absorbance,
-                *lysed_absorbance)
+                *lysed_absorbance, scratch_shade(scene))
     return table
+
+
+def scratch_shade(scene: Scene) -> float:
+    """The light the scratched plastic under a scratch loses per unit of the stain it scraped off
+    (``artifacts.scratch_haze`` over ``artifacts.scratch_clearing``): a scratch's ``scratched`` value is its coverage
+    times the clearing, so the factor on its light is ``1 - scratch_shade * scratched`` (:func:`layer_transmittance`)."""
+    art = scene.artifacts
+    return art.scratch_haze / art.scratch_clearing if art.scratch_clearing > 0.0 else 0.0
 
 
 def clump_level(share: float) -> float:
@@ -335,6 +348,9 @@ def monolayer_density(u, v, du, dv, dist, radius, well, stain, low_grid, fibre_g
         if stain.rim_mottle_side > 0.0 and dist > 0.0:  # strongest on one side, weakest on the other
             facing = (du * stain.rim_mottle_cos + dv * stain.rim_mottle_sin) / dist
             band *= 1.0 - stain.rim_mottle_side * 0.5 * (1.0 - facing)
+        if stain.rim_mottle_patches > 0.0:  # in stretches along the rim, bare between them
+            gate = clip01(0.5 + grid_sample(low_grid, u / low_cell + RIM_PATCH_SHIFT, v / low_cell) / (2.0 * RIM_PATCH_EDGE))
+            band *= 1.0 - stain.rim_mottle_patches * (1.0 - gate)
         density *= 1.0 - stain.rim_mottle * band * patch
     if stain.meniscus > 0.0 and radius - dist < RIM_REACH * MENISCUS_MM:
         density *= 1.0 + stain.meniscus * math.exp(-max(radius - dist, 0.0) / MENISCUS_MM)
@@ -399,6 +415,17 @@ def stain_transmittance(density, stain, lysed):
         t + (1.0 - t) * math.exp(-density * g),
         t + (1.0 - t) * math.exp(-density * b),
     )
+
+
+@njit(cache=True, nogil=True, inline="always")
+def layer_transmittance(density, stain, lysed, scratched):
+    """Linear RGB transmittance of the layer (:func:`stain_transmittance`) where scratches scraped off ``scratched``
+    of it, their scratched plastic dimming the light by ``stain.scratch_shade`` per unit (:func:`scratch_shade`)."""
+    r, g, b = stain_transmittance(density, stain, lysed)
+    if scratched > 0.0 and stain.scratch_shade > 0.0:
+        hazed = max(1.0 - stain.scratch_shade * scratched, 0.0)
+        return r * hazed, g * hazed, b * hazed
+    return r, g, b
 
 
 @njit(cache=True, nogil=True)
@@ -507,8 +534,9 @@ def edge_noise(at, seed):
 
 
 @njit(cache=True, nogil=True)
-def draw_capsules(hinv, segments, values, boxes, pixel_mm, out):
-    """Max-combine anti-aliased capsules (thick line segments) into ``out``.
+def draw_capsules(hinv, segments, values, boxes, pixel_mm, softness_mm, out):
+    """Max-combine anti-aliased capsules (thick line segments) into ``out``; their edges fade over a pixel, or over
+    ``softness_mm`` where that is wider (``hypot`` of the two), about the same outline.
 
     ``segments[s] = (x0, y0, x1, y1, half_width, along, roughness, phase)`` in mm: ``along`` is the distance of the
     segment's start from its stroke's start, and each edge's distance from the centre line varies along the stroke
@@ -523,6 +551,7 @@ def draw_capsules(hinv, segments, values, boxes, pixel_mm, out):
         length2 = ex * ex + ey * ey
         length = math.sqrt(length2)
         value = values[s]
+        fade = math.hypot(pixel_mm, softness_mm)
         y0, y1, x0, x1 = boxes[s, 0], boxes[s, 1], boxes[s, 2], boxes[s, 3]
         for y in range(y0, y1):
             for x in range(x0, x1):
@@ -539,7 +568,7 @@ def draw_capsules(hinv, segments, values, boxes, pixel_mm, out):
                     left = 1.0 if px * ey - py * ex > 0.0 else 0.0
                     width *= 1.0 + roughness * edge_noise(along + t * length, 100.0 * phase + 50.0 * left)
                 thin = min(1.0, 2.0 * width / pixel_mm)  # lines thinner than a pixel fade instead of vanishing
-                coverage = 0.5 - (math.sqrt(dx * dx + dy * dy) - max(width, 0.5 * pixel_mm)) / pixel_mm
+                coverage = 0.5 - (math.sqrt(dx * dx + dy * dy) - max(width, 0.5 * pixel_mm)) / fade
                 if coverage <= 0.0:
                     continue
                 coverage = min(coverage, 1.0) * thin * value
@@ -648,7 +677,8 @@ def draw_well_content(
         segments += [(*points[i], *points[i + 1], 0.5 * scratch.width_mm, starts[i], art.scratch_roughness, phase)
                      for i in range(len(points) - 1)]
     if segments:
-        _capsules(grid, np.array(segments), np.full(len(segments), SCRATCH_CLEARING), content.scratched)
+        _capsules(grid, np.array(segments), np.full(len(segments), art.scratch_clearing), content.scratched,
+                  art.scratch_softness_mm)
     if art.debris:
         rows, values = [], []
         for d in art.debris:
@@ -662,15 +692,16 @@ def draw_well_content(
     return content
 
 
-def _capsules(grid: Sampling, segments: np.ndarray, values: np.ndarray, out: np.ndarray) -> None:
+def _capsules(grid: Sampling, segments: np.ndarray, values: np.ndarray, out: np.ndarray, softness_mm: float = 0.0) -> None:
     pixel_mm = 1.0 / grid.px_per_mm
     ends = segments[:, :4].reshape(-1, 2, 2)
-    reach = segments[:, 4] * (1.0 + segments[:, 6]) + pixel_mm
+    reach = segments[:, 4] * (1.0 + segments[:, 6]) + pixel_mm + softness_mm
     lo = ends.min(axis=1) - reach[:, None]
     hi = ends.max(axis=1) + reach[:, None]
     corners = np.stack([lo, np.stack([hi[:, 0], lo[:, 1]], 1), hi, np.stack([lo[:, 0], hi[:, 1]], 1)], axis=1)
     boxes = boxes_from_extents(grid.project(corners), grid.height, grid.width)
-    draw_capsules(grid.px_to_plate, segments.astype(np.float64), values.astype(np.float32), boxes, pixel_mm, out)
+    draw_capsules(grid.px_to_plate, segments.astype(np.float64), values.astype(np.float32), boxes, pixel_mm,
+                  softness_mm, out)
 
 
 @njit(cache=True, nogil=True, parallel=True, fastmath=True)
@@ -697,7 +728,7 @@ def _bake_floor(texel_mm, a1x, a1y, pitch, rows, cols, radius, wells, stain, low
                                                mottle_tile)
             density = changed_density(density, u, v, well, clearing[y, x], rim[y, x], scratched[y, x], specks[y, x],
                                       residual_tile)
-            r, g, b = stain_transmittance(density, st, lysed)
+            r, g, b = layer_transmittance(density, st, lysed, scratched[y, x])
             out[y, x, 0] = r
             out[y, x, 1] = g
             out[y, x, 2] = b

@@ -299,7 +299,7 @@ def shade(
                                                                   fibre_grid, fine_tile, mottle_tile)
                     density = appearance.changed_density(density, u, v, well, clearing[y, x], rim[y, x],
                                                          scratched[y, x], specks[y, x], residual_tile)
-                    layer_r, layer_g, layer_b = appearance.stain_transmittance(density, st, lysed)
+                    layer_r, layer_g, layer_b = appearance.layer_transmittance(density, st, lysed, scratched[y, x])
                     layer_r = layer_r * disc + 1.0 - disc
                     layer_g = layer_g * disc + 1.0 - disc
                     layer_b = layer_b * disc + 1.0 - disc

@@ -132,6 +132,9 @@ class StainConfig(Section):
     rim_mottle_side: Dist = number(
         0.0, 0.0, 1.0, "", "how one-sided the mottled band is: 0 even all around, 1 only on the side of each well that "
         "faces one direction of the plate (drawn per plate: the side toward which the plate was tilted to empty it)")
+    rim_mottle_patches: Dist = number(
+        0.0, 0.0, 1.0, "", "how patchy the mottled band is along the rim: 0 the same all round, 1 in stretches of a few "
+        "millimetres with half the rim or more bare (sheets of cells that came loose here and there)")
     meniscus: Dist = number(0.0, 0.0, 5.0, "", "extra stain density, relative, in a thin dark line along the rim where "
                             "the meniscus of the stain left more dye")
     lysed_density: Dist = number(0.6, 0.0, 2.0, "", "density a lysed well keeps where its remnant is full, relative")
@@ -226,6 +229,12 @@ class ArtifactsConfig(Section):
     scratch_roughness: Dist = number(0.0, 0.0, 0.9, "", "how ragged the plate's scratches are: each edge's distance "
                                      "from the centre line varies along them, each edge on its own, by up to this "
                                      "share (0: smooth, even strokes)")
+    scratch_clearing: Dist = number(0.95, 0.0, 1.0, "", "share of the stain the plate's scratches scrape off (the "
+                                    "photos' scrapes keep a pale violet-grey, not white)")
+    scratch_softness_mm: Dist = number(0.0, 0.0, 1.0, "mm", "width over which the edges of the plate's scratches fade "
+                                       "(torn cells, not a cut: 0 is as sharp as a pixel)")
+    scratch_haze: Dist = number(0.0, 0.0, 0.9, "", "share of the light the scratched plastic under the plate's "
+                                "scratches scatters away (a greyer scrape)")
     marker: float = probability(0.6, "chance of marker writing on the plate")
     marker_strokes: Dist = number({"integers": [1, 3]}, 1, 20, "strokes", "number of pen strokes", integer=True)
     marker_size_mm: Dist = number([3.0, 7.0], 0.5, 40.0, "mm", "length of a pen stroke (strokes stand 0.6 of it apart)")

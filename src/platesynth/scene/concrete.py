@@ -85,6 +85,7 @@ class Stain(_Concrete):
     rim_mottle: float = Field(0.0, description="how much paler the patches of the mottled band along the rim are, 0..1")
     rim_mottle_mm: float = Field(2.0, description="width of the mottled band along the rim, mm")
     rim_mottle_side: float = Field(0.0, description="how one-sided the mottled band is, 0 (all around) to 1")
+    rim_mottle_patches: float = Field(0.0, description="how patchy the mottled band is along the rim, 0 (even) to 1")
     rim_mottle_angle_deg: float = Field(0.0, description="direction of the side where the band is strongest, degrees "
                                         "(plate x axis 0, y axis 90)")
     meniscus: float = Field(0.0, description="extra stain density in a thin line along the rim, relative")
@@ -208,6 +209,9 @@ class Artifacts(_Concrete):
 
     scratches: tuple[Scratch, ...] = ()
     scratch_roughness: float = Field(0.0, description="share by which the scratches' width varies along them")
+    scratch_clearing: float = Field(0.95, description="share of the stain the scratches scrape off, 0..1")
+    scratch_softness_mm: float = Field(0.0, description="width over which the scratches' edges fade, mm")
+    scratch_haze: float = Field(0.0, description="share of the light the scratched plastic scatters away, 0..1")
     marker: tuple[MarkerStroke, ...] = ()
     blots: tuple[Blot, ...] = ()
     debris: tuple[Debris, ...] = ()

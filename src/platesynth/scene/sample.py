@@ -345,7 +345,9 @@ def sample_scene(config: SceneConfig, seed: int) -> Scene:
     side_angle = round(float(rim_band.uniform(0.0, 360.0)), 2)  # first: a fixed setting below draws nothing
     stain = stain.model_copy(update={"rim_mottle_angle_deg": side_angle,
                                      "rim_mottle_side": c.stain.draw("rim_mottle_side", rim_band),
-                                     "meniscus": c.stain.draw("meniscus", rim_band)})
+                                     "meniscus": c.stain.draw("meniscus", rim_band),
+                                     "rim_mottle_patches": c.stain.draw("rim_mottle_patches",
+                                                                        scene_rng(seed, "rim_patches"))})
     plaques = _shrink_crowded(plaques, c.plaques.draw("max_coverage", rng), plate.well_radius_mm)
     return Scene(
         seed=texture_seed,
@@ -356,7 +358,11 @@ def sample_scene(config: SceneConfig, seed: int) -> Scene:
         plaques=tuple(plaques),
         plaque_look=plaque_look,
         artifacts=Artifacts(scratches=tuple(scratches), marker=tuple(marker), blots=tuple(blots), debris=tuple(debris),
-                            scratch_roughness=c.artifacts.draw("scratch_roughness", scene_rng(seed, "scratch_edges"))),
+                            scratch_roughness=c.artifacts.draw("scratch_roughness", scene_rng(seed, "scratch_edges")),
+                            scratch_clearing=c.artifacts.draw("scratch_clearing", scene_rng(seed, "scratch_clearing")),
+                            scratch_softness_mm=c.artifacts.draw("scratch_softness_mm",
+                                                                 scene_rng(seed, "scratch_softness")),
+                            scratch_haze=c.artifacts.draw("scratch_haze", scene_rng(seed, "scratch_haze"))),
         background=background,
         lighting=lighting,
         camera=camera,

@@ -14,7 +14,9 @@ STREAMS = ("well_offsets", "unevenness", "fibres", "desk", "fine", "residual", "
            "lysed_palette", "scratch_edges", "lysed_disc",
            "plate_walls", "lysed_clumps", "rim_band", "plate_floor", "wall_stain", "pipette_pose",
            "plaque_lumps", "lysed_speckle", "sharpen_luma",
-           "top_edge_blur", "noise_grain", "wall_slant", "wall_glints", "wall_glint_harmonics")
+           "top_edge_blur", "noise_grain", "wall_slant", "wall_glints", "wall_glint_harmonics",
+           "scratch_clearing", "scratch_softness", "scratch_haze",
+           "rim_patches")
 """The random streams of a scene's seed, in the order they are spawned (append new ones at the end)."""
 
 
