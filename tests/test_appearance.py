@@ -261,7 +261,7 @@ def test_a_one_sided_mottled_band_is_strongest_toward_its_direction(base_scene):
 
 
 def test_a_patchy_mottled_band_comes_and_goes_along_the_rim(base_scene):
-    """``stain.rim_mottle_patches`` 1 leaves stretches of the rim bare of the mottle (half or more of it), where 0 pales
+    """``stain.rim_mottle_patches`` 1 leaves stretches of the rim bare of the mottle (about half of it), where 0 pales
     every stretch; where the patches keep it, it is as pale as without them."""
     scene, well = base_scene
     radius = scene.plate.well_radius_mm
@@ -279,7 +279,7 @@ def test_a_patchy_mottled_band_comes_and_goes_along_the_rim(base_scene):
     even, patchy = paling(0.0), paling(1.0)
     assert even.min() > 0.5 * even.mean()  # every stretch paled (0.13 at least, 0.19 on average, measured)
     bare = patchy < 0.2 * even.mean()
-    assert 0.2 < bare.mean() < 0.85, bare.mean()  # 0.72 of the stretches measured
+    assert 0.2 < bare.mean() < 0.8, bare.mean()  # 0.56 of the stretches measured
     assert np.all(patchy <= even + 1e-9) and patchy.max() > 0.8 * even.mean()
 
 

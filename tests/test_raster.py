@@ -12,7 +12,7 @@ from platesynth.render import render
 from platesynth.render.appearance import stain_table, wall_sheen, wall_tints
 from platesynth.render.color import srgb_to_linear
 from platesynth.render.masks import clean_isolated_pixels
-from platesynth.render.raster import camera_view, parallax, render_raster, wells_in_view
+from platesynth.render.raster import camera_view, parallax, plate_relief, render_raster, wells_in_view
 from platesynth.render.result import plaque_counts
 from platesynth.render.sampling import ring, smeared_ring
 from platesynth.render.textures import scene_textures
@@ -414,3 +414,28 @@ def test_the_walls_glints_are_as_uneven_as_asked_and_belong_to_their_wells():
     outward = np.array([w.center_mm for w in wells]) - axis
     np.testing.assert_allclose(added[:, :2], 0.2 * outward / np.hypot(*outward.T)[:, None], atol=1e-12)
     assert not added[:, 2:].any()
+
+
+def test_well_labels_sit_where_four_wells_meet_with_a_rib_to_their_well():
+    """``plate.labels_at_junction`` puts each label circle (radius 0.11 pitch) on the junction of four wells, with a
+    rib from the circle to its well's wall along the diagonal; else the circle lies 0.08 and 0.05 pitch nearer its
+    well and there is no rib."""
+    scene = small_scene("high", 2, **{"plate.format": 12, "plate.labels_at_junction": 1.0})
+    elsewhere = small_scene("high", 2, **{"plate.format": 12, "plate.labels_at_junction": 0.0})
+    assert scene.plate_look.labels_at_junction and not elsewhere.plate_look.labels_at_junction
+    assert elsewhere.model_copy(update={"plate_look": scene.plate_look}) == scene  # its own stream: nothing else moves
+    plate, k = scene.plate, 8.0
+    pitch = plate.pitch_mm
+    x, y = plate.a1_x_mm + 1.5 * pitch, plate.a1_y_mm + 0.5 * pitch  # where wells A2, A3, B2 and B3 meet: B3's label
+
+    def ink(relief: np.ndarray, u: float, v: float) -> float:
+        """The relief's largest magnitude within a texel of the plate point (u, v)."""
+        row, col = int(v * k), int(u * k)
+        return float(np.abs(relief[row - 1: row + 2, col - 1: col + 2]).max())
+
+    at_junction, near_well = plate_relief(plate, k, True), plate_relief(plate, k, False)
+    reach = 0.11 * pitch
+    for relief, (cx, cy) in ((at_junction, (x, y)), (near_well, (x + 0.08 * pitch, y + 0.05 * pitch))):
+        assert min(ink(relief, cx + dx, cy + dy) for dx, dy in ((reach, 0), (-reach, 0), (0, reach), (0, -reach))) > 0.2
+    rib = 0.5 * (0.11 * pitch / np.sqrt(2.0) + 0.5 * pitch - (plate.well_radius_mm + plate.wall_mm) / np.sqrt(2.0))
+    assert ink(at_junction, x + rib, y + rib) > 0.2 and ink(near_well, x + rib, y + rib) == 0.0

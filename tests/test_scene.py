@@ -47,11 +47,11 @@ def test_presets_load_and_sample_json_roundtrip(preset):
 # sha256 of sample_scene(load_config(preset), 3).model_dump_json(): sampling must not change without intent (a change
 # here changes every dataset rendered from these presets). Update only for a deliberate change of the sampling.
 SCENE_SHA256_SEED3 = {
-    "diverse": "1cca9d9d92418c278ee9065a0e3d1618d5e933a6b3b770b228d90740fa8e110a",
-    "high": "0efa8aa6869ba73c2dc3d7f47684762f4f7fd83430e84dc77c22c8a3a9c57d55",
-    "lightbox12": "bd084c1818fe7cf8bcafb44aa05df061911c80b3393b8cae2b3b6ac863c24ac7",
-    "low": "88ed6d993eec02e83a778029ece0d5c2217003d0aac7d5a73566d7150426c384",
-    "medium": "838f0a4eae4eefc70558ff6627b3877d77bdb1e0e619ad6d3de89ce21eab3aa0",
+    "diverse": "900477b740884510502859297dccf21ae335daf0c4317282efe1de934cf2cb7b",
+    "high": "141a624fe0ac653f7abefc7376024f2783f8075fac82b1e73c11737ae4058087",
+    "lightbox12": "3c310f9929fe4b1af521df222d58cffa533e8ba3d2ab5db6e49cb5160d7e2eaa",
+    "low": "72f9f373d20321faebf9ddaf40560d535dc9d6dab0a7a87cd7a87a13eec20a0a",
+    "medium": "6d90c03a25b98f308de924bc0cff7a030dcfc1abcbed341b0f3f4af6b6155fe5",
 }
 
 

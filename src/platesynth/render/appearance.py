@@ -58,11 +58,10 @@ MOTTLE_COVER = 0.5
 """Share of the mottled band's area covered by paler patches (the mottle tile above its median)..."""
 MOTTLE_EDGE = 0.35
 """...with patch edges this soft (unit-sd noise over which a patch fades in)."""
-RIM_PATCH_SHIFT = 29.0
-"""``stain.rim_mottle_patches`` gates the band where the unevenness grid, read this many cells to the right (apart
-from the stain's blotches and the lysed cloud), stands above 0..."""
 RIM_PATCH_EDGE = 0.3
-"""...fading in over this much of the grid's unit sd."""
+"""``stain.rim_mottle_patches`` gates the band where the unevenness grid, read turned by half a turn (the plate's
+far corner at its first cell, apart from the stain's blotches), stands above 0, fading in over this much of the
+grid's unit sd."""
 MENISCUS_MM = 0.2
 """The dark line of ``stain.meniscus`` fades over this distance inward from the rim."""
 
@@ -349,7 +348,8 @@ def monolayer_density(u, v, du, dv, dist, radius, well, stain, low_grid, fibre_g
             facing = (du * stain.rim_mottle_cos + dv * stain.rim_mottle_sin) / dist
             band *= 1.0 - stain.rim_mottle_side * 0.5 * (1.0 - facing)
         if stain.rim_mottle_patches > 0.0:  # in stretches along the rim, bare between them
-            gate = clip01(0.5 + grid_sample(low_grid, u / low_cell + RIM_PATCH_SHIFT, v / low_cell) / (2.0 * RIM_PATCH_EDGE))
+            turned = grid_sample(low_grid, low_grid.shape[1] - 1.0 - u / low_cell, low_grid.shape[0] - 1.0 - v / low_cell)
+            gate = clip01(0.5 + turned / (2.0 * RIM_PATCH_EDGE))
             band *= 1.0 - stain.rim_mottle_patches * (1.0 - gate)
         density *= 1.0 - stain.rim_mottle * band * patch
     if stain.meniscus > 0.0 and radius - dist < RIM_REACH * MENISCUS_MM:

@@ -42,9 +42,11 @@ def texels_per_mm(px_per_mm: float) -> float:
 
 
 @lru_cache(maxsize=16)
-def plate_relief(plate: PlateGeometry, k: float) -> np.ndarray:
+def plate_relief(plate: PlateGeometry, k: float, labels_at_junction: bool = False) -> np.ndarray:
     """Darkening (about -0.6..0.4 before scaling by the label strength) by the plate's embossed labels, label
-    rings and frame, in plate space at ``k`` texels per mm (texel (0, 0) covers [0, 1/k) mm)."""
+    rings and frame, in plate space at ``k`` texels per mm (texel (0, 0) covers [0, 1/k) mm). Each well's label
+    circle lies a little off the junction of four wells toward its well, or, ``labels_at_junction``, on it with a
+    rib to its well's wall (``plate_look.labels_at_junction``)."""
     size = (int(math.ceil(plate.length_mm * k)) + 2, int(math.ceil(plate.width_mm * k)) + 2)
     relief = Image.new("L", size, 0)
     draw = ImageDraw.Draw(relief)
@@ -71,8 +73,13 @@ def plate_relief(plate: PlateGeometry, k: float) -> np.ndarray:
     if plate.format in (6, 12, 24):
         for row in range(1, plate.rows):
             for col in range(plate.cols):
-                x = plate.a1_x_mm + col * pitch - 0.5 * pitch + 0.08 * pitch
-                y = plate.a1_y_mm + row * pitch - 0.5 * pitch + 0.05 * pitch
+                x = plate.a1_x_mm + col * pitch - 0.5 * pitch
+                y = plate.a1_y_mm + row * pitch - 0.5 * pitch
+                if labels_at_junction:  # a rib from the circle to the wall, toward the well's centre
+                    start, end = 0.11 * pitch / math.sqrt(2.0), 0.5 * pitch - (radius + plate.wall_mm) / math.sqrt(2.0)
+                    draw.line([((x + start) * k, (y + start) * k), ((x + end) * k, (y + end) * k)], fill=255, width=line)
+                else:
+                    x, y = x + 0.08 * pitch, y + 0.05 * pitch
                 circle(x, y, 0.11 * pitch)
                 text(x, y, f"{chr(ord('A') + row)}{col + 1}", 0.1 * pitch)
     # the plate's frame: a raised rim and ribs at every column
@@ -193,7 +200,7 @@ def render_raster(scene: Scene, size: tuple[int, int] = (1024, 768)) -> RenderRe
         appearance.well_table(wells, top_centres, foot_centres, appearance.wall_tints(scene, wells, stain[0]),
                               appearance.wall_sheen(scene, wells, view.principal_mm, textures.wall_glints),
                               textures.well_offsets), stain,
-        plate_relief(scene.plate, k), marker_ink(scene, k), k, textures.low_grid,
+        plate_relief(scene.plate, k, scene.plate_look.labels_at_junction), marker_ink(scene, k), k, textures.low_grid,
         appearance.fibre_grid_or_empty(textures), desk_grid, desk_cell_px, textures.fine_tile,
         textures.mottle_tile, textures.residual_tile, content.clearing, content.rim, content.scratched, content.specks, light_gains(scene),
         gamma_lut(), image, wells_mask,

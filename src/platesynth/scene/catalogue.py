@@ -72,6 +72,9 @@ class PlateConfig(Section):
     wall_stain: Dist = number(0.0, 0.0, 0.2, "",
                               "share of its well's stain the band over a wall takes: light that passed the stained "
                               "floor and is refracted into the wall, seen end-on (a stain-tinted ring around each well)")
+    labels_at_junction: float = probability(
+        0.0, "chance the wells' labels sit in their circles where four wells meet, each circle with a rib to its well, "
+        "as on the photos' 12-well plates (else a little nearer their well)")
     wall_slant: Dist = number(0.0, -0.5, 0.5, "",
                               "how much brighter the band over a well's wall is on its side away from the camera's "
                               "axis than on the other, relative (the wall's inside seen at a slant through the floor)")
@@ -134,7 +137,7 @@ class StainConfig(Section):
         "faces one direction of the plate (drawn per plate: the side toward which the plate was tilted to empty it)")
     rim_mottle_patches: Dist = number(
         0.0, 0.0, 1.0, "", "how patchy the mottled band is along the rim: 0 the same all round, 1 in stretches of a few "
-        "millimetres with half the rim or more bare (sheets of cells that came loose here and there)")
+        "millimetres with about half the rim bare (sheets of cells that came loose here and there)")
     meniscus: Dist = number(0.0, 0.0, 5.0, "", "extra stain density, relative, in a thin dark line along the rim where "
                             "the meniscus of the stain left more dye")
     lysed_density: Dist = number(0.6, 0.0, 2.0, "", "density a lysed well keeps where its remnant is full, relative")

@@ -68,6 +68,8 @@ class PlateLook(_Concrete):
     wall_stain: float = Field(0.0, description="share of its well's stain the band over a wall takes, 0..1")
     wall_slant: float = Field(
         0.0, description="how much brighter the band over a wall is on its side away from the camera's axis, relative")
+    labels_at_junction: bool = Field(
+        False, description="the wells' label circles sit where four wells meet, each with a rib to its well")
     wall_glints: float = Field(0.0, description="sd of the band's uneven brightness around each well, relative")
 
 

@@ -154,6 +154,7 @@ def sample_scene(config: SceneConfig, seed: int) -> Scene:
         top_edge_blur_mm=c.plate.draw("top_edge_blur_mm", scene_rng(seed, "top_edge_blur")),
         wall_slant=c.plate.draw("wall_slant", scene_rng(seed, "wall_slant")),
         wall_glints=c.plate.draw("wall_glints", scene_rng(seed, "wall_glints")),
+        labels_at_junction=c.plate.draw("labels_at_junction", scene_rng(seed, "label_place")),
     )
 
     tilt = c.camera.draw("tilt_deg", rng)

@@ -133,7 +133,7 @@ def _write_textures(scene: Scene, view: View, noise: SceneTextures, directory: P
     relief_k = texels_per_mm(view.px_per_mm)
     arrays = {
         "floor": (floor_transmittance(scene, floor_k, noise), floor_k),
-        "relief": (plate_relief(scene.plate, relief_k), relief_k),
+        "relief": (plate_relief(scene.plate, relief_k, scene.plate_look.labels_at_junction), relief_k),
         "unevenness": (noise.low_grid, 1.0 / noise.low_cell_mm),
     }
     entries = {}
