@@ -141,8 +141,7 @@ def top_ring(dist, radius, half_width, f):
 @njit(cache=True, nogil=True, inline="always")
 def band_sheen(well, du, dv, dist):
     """The relative brightness change of the band over ``well``'s wall at ``(du, dv)`` from the well's centre, at
-    distance ``dist`` (the Fourier series of
-    :func:`~platesynth.render.appearance.wall_sheen`, its three harmonics)."""
+    distance ``dist``: the Fourier series of :func:`~platesynth.render.appearance.wall_sheen`, its three harmonics."""
     if dist <= 0.0:
         return 0.0
     c1 = du / dist
@@ -161,9 +160,9 @@ def plastic(foot_dist, top_dist, disc, signed, relief, sheen, f):
     (``relief``) and the skirt; ``disc`` is the pixel's coverage by the well's floor, ``foot_dist`` its distance from
     the centre of the walls' foot as the camera sees it. Where the foot's opening shows no floor, the camera sees
     the inside of the wall below the floor: it takes the band's brightness, changed by ``sheen`` (relative) where
-    the pixel lies (:func:`band_sheen`). Seen from below, the walls' top edge
-    lies behind the floor: only ``top_edge_through_floor`` of its outlines shows through it. Returns the share
-    passed and the pixel's coverage by the band (0..1)."""
+    the pixel lies (:func:`band_sheen`). Seen from below, the walls' top edge lies behind the floor: only
+    ``top_edge_through_floor`` of its outlines shows through it. Returns the share passed and the pixel's coverage by
+    the band (0..1)."""
     behind_layer = 1.0 - disc * (1.0 - f.top_edge_through_floor) if f.from_below else 1.0
     line_half = 0.5 * OUTLINE_WIDTH_MM
     foot_radius = f.radius * f.foot_scale

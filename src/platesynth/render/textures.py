@@ -32,7 +32,8 @@ MOTTLE_CELL_MM = 0.06
 WELL_OFFSET_RANGE_MM = 100.0
 """Each well reads the periodic tiles shifted by its own offset, uniform in [0, this)."""
 WALL_GLINT_HARMONICS = 3
-"""The uneven brightness around a well's wall is a Fourier series of this many angular harmonics (1, 2, 3)."""
+"""The uneven brightness around a well's wall is a Fourier series of this many angular harmonics (1, 2, 3); the
+raster renderer's ``shading.band_sheen`` and Blender's rim material sum exactly three."""
 
 
 def plate_grid_index(plate: PlateGeometry, center_mm: tuple[float, float]) -> int:
