@@ -2,11 +2,12 @@
 
 For each model: MAE, RMSE, Pearson r and bias of the plaques per well against the person's counts (countable wells
 only), the number of wells, and how well it finds the uncountable wells (precision, recall of the blanks), from
-:func:`platesynth.segment.counts.evaluate_counts`. The split is by virus (``benchmarks/shared_split.py``): looks
+:func:`platesynth.segment.counts.evaluate_counts`; and how large it draws the wells: its wells' mean radius over the
+fitted plate grid's (:func:`platesynth.metrics.fit_plate_grid`), photo by photo (10th, 50th and 90th percentiles). The split is by virus (``benchmarks/shared_split.py``): looks
 and models are tuned on the fit viruses, the check virus is only measured.
 
 Run: ``python benchmarks/zero_shot_counts.py`` (``--models DIR,DIR``, ``--threads T``, ``--table OUT.csv`` for the
-per-well records of the first model).
+per-well records of the first model, ``--plaque-thresholds PROB,NMS`` in place of the models' own).
 """
 
 from __future__ import annotations
@@ -30,14 +31,19 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--models", default=str(ROOT / "models" / "plaque12"), help="comma-separated model folders")
     parser.add_argument("--threads", type=int, default=2)
     parser.add_argument("--table", type=Path, default=None, help="write the first model's per-well records here")
+    parser.add_argument("--plaque-thresholds", default=None, metavar="PROB,NMS",
+                        help="the plaque branch's thresholds in place of those tuned with each model")
     args = parser.parse_args(argv)
+    plaque_thresholds = tuple(float(t) for t in args.plaque_thresholds.split(",")) if args.plaque_thresholds else None
     plates = SHARED / "data" / "plaque12" / "plates"
     counts = SHARED / "data" / "plaque12" / "counts.csv"
     if not counts.is_file():
         raise SystemExit(f"{counts} not found: set PLATESYNTH_SHARED to the shared material")
 
+    import numpy as np
     import torch
 
+    from platesynth.metrics import fit_plate_grid
     from platesynth.segment.counts import evaluate_counts
     from platesynth.segment.model import load_model
     from platesynth.segment.predict import predict_image
@@ -48,12 +54,16 @@ def main(argv: list[str] | None = None) -> None:
     with tempfile.TemporaryDirectory() as tmp:
         for index, folder in enumerate(args.models.split(",")):
             model = load_model(folder)
+            thresholds = model.config.thresholds | ({"plaques": plaque_thresholds} if plaque_thresholds else {})
             cache: dict[bytes, object] = {}
+            well_scale: dict[bytes, float] = {}
 
-            def predict(image, model=model, cache=cache):
+            def predict(image, model=model, cache=cache, thresholds=thresholds, well_scale=well_scale):
                 key = hashlib.sha1(image.tobytes()).digest()
                 if key not in cache:
-                    cache[key] = predict_image(model, image)
+                    cache[key] = result = predict_image(model, image, thresholds=thresholds)
+                    radii = [np.sqrt((result.wells == w.id).sum() / np.pi) for w in result.well_info]
+                    well_scale[key] = float(np.mean(radii) / np.mean([d.radius for d in fit_plate_grid(image[..., :3])]))
                 return cache[key]
 
             for split in ("fit", "check", "all"):
@@ -68,6 +78,9 @@ def main(argv: list[str] | None = None) -> None:
                         writer = csv.DictWriter(handle, fieldnames=list(report["wells"][0]))
                         writer.writeheader()
                         writer.writerows(report["wells"])
+            low, middle, high = np.percentile(list(well_scale.values()), [10, 50, 90])
+            print(f"{Path(folder).name:28s} wells' radius over the fitted grid's, {len(well_scale)} photos: "
+                  f"{low:.3f} {middle:.3f} {high:.3f} (10th, 50th, 90th percentiles)")
 
 
 if __name__ == "__main__":
