@@ -34,6 +34,21 @@ def distance_to_top_edges(scene: Scene, size: tuple[int, int]) -> tuple[np.ndarr
     return to_edge, on_floor, pixel_mm
 
 
+def past_top_edge(scene: Scene, size: tuple[int, int]) -> tuple[np.ndarray, float]:
+    """Per pixel on a floor (1 px inside it): how far (mm) it lies past its well's top edge as the camera sees it,
+    the edge's opening seen with parallax (negative: within the opening; NaN off the floors), and the pixel size
+    (mm)."""
+    view = camera_view(scene, *size)
+    wells, top_centres, top_radius = wells_in_view(scene, view)
+    u, v = pixel_centres_mm(view)
+    pixel_mm = 1.0 / view.px_per_mm
+    past = np.full(u.shape, np.nan)
+    for well, (tx, ty) in zip(wells, top_centres, strict=True):
+        on_floor = np.hypot(u - well.center_mm[0], v - well.center_mm[1]) < scene.plate.well_radius_mm - pixel_mm
+        past[on_floor] = np.hypot(u - tx, v - ty)[on_floor] - top_radius
+    return past, pixel_mm
+
+
 def wall_band(scene: Scene, size: tuple[int, int], margin_px: float = 2.0) -> np.ndarray:
     """Per pixel: whether it lies over a well's wall (between the floor's edge and the wall's outer foot), at least
     ``margin_px`` pixels from both, where the walls' outlines and their blur do not reach (a negative margin widens

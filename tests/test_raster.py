@@ -4,13 +4,15 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from scipy import ndimage
 
-from _geometry import distance_to_top_edges, pixel_centres_mm, wall_band
+from _geometry import distance_to_top_edges, past_top_edge, pixel_centres_mm, wall_band
 from platesynth.errors import ParameterError, ShapeMismatchError
 from platesynth.render import postprocess as pp
 from platesynth.render import render
 from platesynth.render.appearance import stain_table, wall_sheen, wall_tints
 from platesynth.render.color import srgb_to_linear
+from platesynth.render.look import CRESCENT_LIGHT
 from platesynth.render.masks import clean_isolated_pixels
 from platesynth.render.raster import camera_view, parallax, plate_relief, render_raster, wells_in_view
 from platesynth.render.result import plaque_counts
@@ -279,6 +281,46 @@ def test_the_walls_top_edge_shows_through_the_floor_as_much_as_asked():
     assert np.array_equal(before.image[away], after.image[away])
     off_floor = ~on_floor & (to_edge < 0.5 * pixel_mm) & (before.wells == 0)
     assert np.abs(darker[off_floor]).mean() < 0.5  # outside the floors the edge was drawn already
+
+
+def test_the_floor_past_the_walls_top_edge_is_veiled_as_asked():
+    """Seen from below, ``plate.crescent_veil`` mixes the monolayer's transmittance toward ``CRESCENT_LIGHT`` by that
+    share where the floor lies past the walls' top edge (the light came through the wall): in linear light each
+    pixel's change grows in proportion to the share, the stain's most absorbed channels rise, and it lies in a
+    crescent on each well's side away from the camera's axis; an emptied well's floor there passes
+    ``1 - share * (1 - CRESCENT_LIGHT)`` of its light; nothing else changes, not the masks."""
+    size = (640, 480)
+    settings = {"plaques.negative_plate": 1.0, "camera.distance_mm": 180.0, "wells.emptied": 0.0, "post.jpeg": 0.0,
+                "post.clarity": 0.0, "post.bloom": 0.0, "post.noise": 0.0, "post.sharpen": 0.0,
+                "plate.top_edge_through_floor": 0.0, "plate.top_edge_blur_mm": 0.0}
+    scenes = [small_scene("high", 6, **settings, **{"plate.crescent_veil": share}) for share in (0.0, 0.05, 0.1)]
+    plain, half, full = (render(scene, size) for scene in scenes)
+    assert np.array_equal(plain.wells, full.wells) and np.array_equal(plain.plaques, full.plaques)
+    past, pixel_mm = past_top_edge(scenes[2], size)
+    crescent, opening = past > 2 * pixel_mm, past < -2 * pixel_mm
+    assert crescent.sum() > 2000 and opening.sum() > 20000
+    linear = [srgb_to_linear(result.image / 255.0) for result in (plain, half, full)]
+    rise_half, rise_full = (np.mean(image[crescent] - linear[0][crescent], axis=0) for image in linear[1:])
+    np.testing.assert_allclose(rise_full, 2.0 * rise_half, rtol=0.1, atol=5e-4)  # a mix: linear in the share
+    relative = rise_full / linear[0][crescent].mean(axis=0)
+    # a violet stain absorbs green most, then red: those rise (+4.2 and +0.16 of their light measured), blue barely
+    assert relative[1] > relative[0] > 0.05 and abs(relative[2]) < 0.05, relative
+    unchanged = ~ndimage.binary_dilation(~opening & ~np.isnan(past), iterations=4)  # beyond the floor's edge, defocus
+    assert np.array_equal(plain.image[unchanged], full.image[unchanged])
+    view = camera_view(scenes[2], *size)
+    wells, _, _ = wells_in_view(scenes[2], view)
+    u, v = pixel_centres_mm(view)
+    for well in wells:
+        mine = crescent & (np.hypot(u - well.center_mm[0], v - well.center_mm[1]) < scenes[2].plate.well_radius_mm)
+        if mine.sum() < 50:  # too near the camera's axis for a crescent at this size
+            continue
+        direction = np.array([u[mine].mean() - well.center_mm[0], v[mine].mean() - well.center_mm[1]])
+        assert direction @ (np.asarray(well.center_mm) - view.principal_mm) > 0, well.label
+    emptied = [render(small_scene("high", 6, **(settings | {"wells.emptied": 1.0, "plate.crescent_veil": share})), size)
+               for share in (0.0, 0.1)]
+    lit = crescent & np.all(emptied[0].image < 250, axis=2)  # not clipped
+    ratio = srgb_to_linear(emptied[1].image[lit] / 255.0) / srgb_to_linear(emptied[0].image[lit] / 255.0)
+    np.testing.assert_allclose(np.median(ratio, axis=0), 1.0 - 0.1 * (1.0 - CRESCENT_LIGHT), atol=0.005)
 
 
 def test_the_band_over_the_walls_is_as_bright_as_asked():

@@ -17,6 +17,10 @@ OUTLINE_WIDTH_MM = 0.18
 """Width of the thin dark outlines of the walls' foot and top edges."""
 TOP_EDGE_OFFSET_MM = 0.3
 """The wall's top edge lies this much further out than its foot (the well widens towards the top)."""
+CRESCENT_LIGHT = 0.6
+"""The light that reaches a floor past the walls' top edge through the wall (``plate_look.crescent_veil``), relative
+to the light through the open top: on IBV's wells the crescent's red and green rise while its blue falls a little, a
+mix of about 0.1 toward 0.5-0.6 of the unstained light (two wells of IBV_plate1 fitted, in linear light)."""
 OUTLINE_WEIGHTS = (0.5, 1.0, 0.35, 0.5)
 """Darkness of the outlines (times ``plate_look.rim_darkness``): foot inner, foot outer, top inner, top outer."""
 SKIRT_DARKENING = 0.25

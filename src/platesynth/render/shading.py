@@ -18,6 +18,7 @@ from platesynth.render import appearance
 from platesynth.render.look import (
     BLOT_DISTORTION,
     BLOT_REACH,
+    CRESCENT_LIGHT,
     DESK_AMBIENT,
     DESK_THROUGH,
     FLOOR_TRANSMITTANCE,
@@ -57,6 +58,7 @@ FRAME_DTYPE = np.dtype(
         ("from_below", np.bool_),
         ("top_edge_through_floor", np.float64),  # share of the top edge's outlines seen through a floor
         ("top_edge_blur", np.float64),  # width over which the top edge's outlines are smeared (mm)
+        ("crescent_veil", np.float64),  # share of the light passing around the stain past the top edge
         ("transmittance", np.float64),  # the plastic between the wells
         ("rim_darkness", np.float64),
         ("wall_band", np.float64),  # relative brightness over the walls' thickness
@@ -136,6 +138,13 @@ def top_ring(dist, radius, half_width, f):
     if f.top_edge_blur <= 0.0:  # the anti-aliased ring exactly, also where a pixel is wider than the line
         return ring(dist, radius, half_width, f.pixel_mm)
     return smeared_ring(dist, radius, half_width, math.hypot(f.pixel_mm, f.top_edge_blur))
+
+
+@njit(cache=True, nogil=True, inline="always")
+def past_top_edge(top_dist, f):
+    """Share of a pixel whose ray, seen from below, meets the walls' top-edge plane outside the opening (it crossed
+    the wall, not the open top), the edge smeared over ``f.top_edge_blur`` mm as its outlines are."""
+    return clip01((top_dist - f.top_radius) / math.hypot(f.pixel_mm, f.top_edge_blur) + 0.5)
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -302,6 +311,12 @@ def shade(
                     layer_r = layer_r * disc + 1.0 - disc
                     layer_g = layer_g * disc + 1.0 - disc
                     layer_b = layer_b * disc + 1.0 - disc
+                if f.crescent_veil > 0.0 and f.from_below and disc > 0.0:
+                    # past the top edge, part of the light came through the wall around the stain: a paler crescent
+                    veil = f.crescent_veil * disc * past_top_edge(top_dist, f)
+                    layer_r = layer_r * (1.0 - veil) + veil * CRESCENT_LIGHT
+                    layer_g = layer_g * (1.0 - veil) + veil * CRESCENT_LIGHT
+                    layer_b = layer_b * (1.0 - veil) + veil * CRESCENT_LIGHT
                 if f.is_desk:
                     behind_r = DESK_THROUGH * rgb[0] + DESK_AMBIENT * f.brightness
                     behind_g = DESK_THROUGH * rgb[1] + DESK_AMBIENT * f.brightness

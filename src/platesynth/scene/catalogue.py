@@ -62,6 +62,11 @@ class PlateConfig(Section):
     top_edge_blur_mm: Dist = number(0.0, 0.0, 2.0, "mm",
                                     "how far the outlines of the walls' top edge are smeared: the top edge lies a "
                                     "well's depth from the floors the camera focuses on, so it is out of focus")
+    crescent_veil: Dist = number(0.0, 0.0, 0.3, "",
+                                 "share of the light that reaches the camera around the stain where, seen from "
+                                 "below, a well's floor lies past the walls' top edge (the light came through the "
+                                 "wall, not the open top): a paler crescent on each well's side away from the "
+                                 "camera's axis, bounded by the top edge's arc")
     wall_band: Dist = number(0.04, -0.3, 0.3, "", "how much brighter the plate looks over a well's wall, seen end-on, "
                              "than over the plastic around it (negative: darker)")
     floor_height_mm: Dist = number(0.0, 0.0, 5.0, "mm",

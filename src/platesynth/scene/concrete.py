@@ -61,6 +61,9 @@ class PlateLook(_Concrete):
     top_edge_through_floor: float = Field(
         0.0, description="share of the walls' top-edge outlines seen through a well's floor from below, 0..1")
     top_edge_blur_mm: float = Field(0.0, description="width over which the top edge's outlines are smeared, mm")
+    crescent_veil: float = Field(
+        0.0, description="share of the light reaching the camera around the stain where a floor lies past the walls' "
+                         "top edge, seen from below, 0..1")
     wall_band: float = Field(
         0.04, description="relative brightness of the plate over a well's wall, seen end-on (negative: darker)")
     floor_height_mm: float = Field(

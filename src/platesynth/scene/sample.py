@@ -155,6 +155,7 @@ def sample_scene(config: SceneConfig, seed: int) -> Scene:
         wall_slant=c.plate.draw("wall_slant", scene_rng(seed, "wall_slant")),
         wall_glints=c.plate.draw("wall_glints", scene_rng(seed, "wall_glints")),
         labels_at_junction=c.plate.draw("labels_at_junction", scene_rng(seed, "label_place")),
+        crescent_veil=c.plate.draw("crescent_veil", scene_rng(seed, "crescent_veil")),
     )
 
     tilt = c.camera.draw("tilt_deg", rng)

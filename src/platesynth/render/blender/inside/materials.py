@@ -19,6 +19,7 @@ import bpy
 from platesynth.render.blender.inside.nodes import add, feed, link, math, output, vector_math
 from platesynth.render.look import (
     BLOT_DISTORTION,
+    CRESCENT_LIGHT,
     GLOW_DIP,
     GLOW_FALLOFF_MM,
     RULER_DARK,
@@ -125,13 +126,47 @@ def _plate_texture(tree: bpy.types.NodeTree, texture: PlateTexture) -> bpy.types
     return output(node, "Color")
 
 
-def floor_material(floor: PlateTexture, tint_rgb: tuple[float, float, float], transmittance: float) -> bpy.types.Material:
-    """The well floors: the appearance model's transmittance texture, times the plate's plastic under it."""
+def floor_material(
+    floor: PlateTexture, tint_rgb: tuple[float, float, float], transmittance: float, crescent: Mapping[str, float]
+) -> bpy.types.Material:
+    """The well floors: the appearance model's transmittance texture, times the plate's plastic under it.
+
+    Where the ray, beyond the floor, meets the plane of the walls' top edge (``crescent["height"]``) more than
+    ``crescent["radius"]`` from its well's centre (the ``well_center`` attribute), it came through the wall: the
+    texture moves toward ``CRESCENT_LIGHT`` by ``crescent["veil"]`` there (the raster renderer's ``past_top_edge``), the edge
+    smeared over ``crescent["smear"]`` mm."""
     material, tree, out = _new_material("platesynth.monolayer")
     film = add(tree, "ShaderNodeMix", data_type="RGBA", blend_type="MULTIPLY", clamp_result=False)
-    feed(tree, film, Factor=1.0, A=_plate_texture(tree, floor), B=_plastic_colour(tree, tint_rgb, transmittance))
+    layer = _plate_texture(tree, floor)
+    if crescent["veil"] > 0.0:
+        veiled = add(tree, "ShaderNodeMix", data_type="RGBA", blend_type="MIX", clamp_result=False)
+        feed(tree, veiled, Factor=_past_top_edge(tree, crescent), A=layer, B=(CRESCENT_LIGHT, CRESCENT_LIGHT, CRESCENT_LIGHT, 1.0))
+        layer = output(veiled, "Result")
+    feed(tree, film, Factor=1.0, A=layer, B=_plastic_colour(tree, tint_rgb, transmittance))
     link(tree, feed(tree, add(tree, "ShaderNodeBsdfTransparent"), Color=output(film, "Result")), out)
     return material
+
+
+def _past_top_edge(tree: bpy.types.NodeTree, crescent: Mapping[str, float]) -> bpy.types.NodeSocket:
+    """``veil * clip((d - radius) / smear + 0.5)``: ``d`` the distance from the well's centre at which the ray
+    through the shading point meets the plane ``z = height``."""
+    crossing = _ray_at_height(tree, _value(tree, "Top Edge Height", crescent["height"]))
+    across = vector_math(tree, "MULTIPLY", vector_math(tree, "SUBTRACT", crossing, _attribute(tree, "well_center", "Vector")), (1.0, 1.0, 0.0))
+    outside = math(tree, "SUBTRACT", output(vector_math(tree, "LENGTH", across), "Value"), _value(tree, "Top Edge Radius", crescent["radius"]))
+    past = math(tree, "ADD", math(tree, "DIVIDE", outside, _value(tree, "Top Edge Smear", max(crescent["smear"], 1e-3))), 0.5)
+    past.use_clamp = True
+    return math(tree, "MULTIPLY", past, _value(tree, "Crescent Veil", crescent["veil"]))
+
+
+def _ray_at_height(tree: bpy.types.NodeTree, height: Any) -> bpy.types.NodeSocket:
+    """The point where the camera's ray through the shading point (along ``Incoming``) meets the plane
+    ``z = height``."""
+    geometry = add(tree, "ShaderNodeNewGeometry")
+    position, incoming = output(geometry, "Position"), output(geometry, "Incoming")
+    height_of = [output(feed(tree, add(tree, "ShaderNodeSeparateXYZ"), Vector=v), "Z") for v in (position, incoming)]
+    along = math(tree, "DIVIDE", math(tree, "SUBTRACT", height_of[0], height), height_of[1])
+    back = feed(tree, add(tree, "ShaderNodeVectorMath", operation="SCALE"), Vector=incoming, Scale=along)
+    return output(vector_math(tree, "SUBTRACT", position, output(back, "Vector")), "Vector")
 
 
 def _plastic_colour(tree: bpy.types.NodeTree, tint_rgb: tuple[float, float, float], transmittance: float) -> bpy.types.NodeSocket:
@@ -282,8 +317,7 @@ def rim_material(well_radius: float) -> bpy.types.Material:
     the world angle about the centre, ``(a1, a2, a3)`` the ``sheen_cosines`` and ``(b1, b2, b3)`` the
     ``sheen_sines``."""
     material, tree, out = _new_material("platesynth.rims")
-    geometry = add(tree, "ShaderNodeNewGeometry")
-    position, incoming = output(geometry, "Position"), output(geometry, "Incoming")
+    position = output(add(tree, "ShaderNodeNewGeometry"), "Position")
     centre = _attribute(tree, "rim_center", "Vector")
     across = vector_math(tree, "MULTIPLY", vector_math(tree, "SUBTRACT", position, centre), (1.0, 1.0, 0.0))  # in the ring's plane
     offset = math(tree, "SUBTRACT", output(vector_math(tree, "LENGTH", across), "Value"), _attribute(tree, "ring_radius"))
@@ -299,10 +333,7 @@ def rim_material(well_radius: float) -> bpy.types.Material:
     sheened = feed(tree, add(tree, "ShaderNodeVectorMath", operation="SCALE"), Vector=_attribute(tree, "ink", "Color"),
                    Scale=math(tree, "ADD", sheen, 1.0))
     feed(tree, covered, Factor=coverage, A=(1.0, 1.0, 1.0, 1.0), B=output(sheened, "Vector"))
-    # the point where the ray (towards the camera along ``incoming``) crossed the floors' plane
-    to_floor = math(tree, "DIVIDE", output(feed(tree, add(tree, "ShaderNodeSeparateXYZ"), Vector=position), "Z"), output(feed(tree, add(tree, "ShaderNodeSeparateXYZ"), Vector=incoming), "Z"))
-    back = feed(tree, add(tree, "ShaderNodeVectorMath", operation="SCALE"), Vector=incoming, Scale=to_floor)
-    crossing = vector_math(tree, "SUBTRACT", position, output(back, "Vector"))
+    crossing = _ray_at_height(tree, 0.0)  # where the ray crossed the floors' plane
     off_centre = output(vector_math(tree, "DISTANCE", crossing, centre), "Value")
     through_floor = math(tree, "MULTIPLY", math(tree, "LESS_THAN", off_centre, _value(tree, "Well Radius", well_radius)), _attribute(tree, "rim_hidden_inside"))
     ink = add(tree, "ShaderNodeMix", data_type="RGBA", blend_type="MIX", clamp_result=False)

@@ -73,7 +73,11 @@ def build(description: Mapping[str, Any]) -> dict[str, bpy.types.Object]:
     wells = scene_data["wells"]
     well_attributes = _well_attributes(wells)
     well_points = geometry.point_cloud("platesynth.wells", _with_z(_world_xy([w["center_mm"] for w in wells]), 0.0), well_attributes)
-    floors = materials.floor_material(textures["floor"], plastic[0], FLOOR_TRANSMITTANCE)
+    # seen from below, the floor past the walls' top edge (its plane a well's depth beyond the floors) is veiled
+    crescent = {"veil": float(look["crescent_veil"]) if toward_camera < 0 else 0.0,
+                "height": float(plate_data["well_depth_mm"]), "radius": well_radius + TOP_EDGE_OFFSET_MM,
+                "smear": float(look["top_edge_blur_mm"])}
+    floors = materials.floor_material(textures["floor"], plastic[0], FLOOR_TRANSMITTANCE, crescent)
     geometry.add_modifier(well_points, geometry.wells_group(floors), {"Well Radius": well_radius})
     objects["wells"] = _tag(well_points, "both")
 
