@@ -12,7 +12,7 @@ from platesynth.render import postprocess as pp
 from platesynth.render import render
 from platesynth.render.appearance import stain_table, wall_sheen, wall_tints
 from platesynth.render.color import srgb_to_linear
-from platesynth.render.look import CRESCENT_LIGHT
+from platesynth.render.look import CRESCENT_LIGHT, WALL_LINE_PLACES, WALL_LINE_WOBBLE_MM, wall_line_phase
 from platesynth.render.masks import clean_isolated_pixels
 from platesynth.render.raster import camera_view, parallax, plate_relief, render_raster, wells_in_view
 from platesynth.render.result import plaque_counts
@@ -321,6 +321,46 @@ def test_the_floor_past_the_walls_top_edge_is_veiled_as_asked():
     lit = crescent & np.all(emptied[0].image < 250, axis=2)  # not clipped
     ratio = srgb_to_linear(emptied[1].image[lit] / 255.0) / srgb_to_linear(emptied[0].image[lit] / 255.0)
     np.testing.assert_allclose(np.median(ratio, axis=0), 1.0 - 0.1 * (1.0 - CRESCENT_LIGHT), atol=0.005)
+
+
+def test_the_walls_refracted_lines_lie_where_asked():
+    """``plate.wall_lines`` darkens thin lines across the band over each wall at ``WALL_LINE_PLACES`` of its width,
+    each wandering around the well in two waves of ``WALL_LINE_WOBBLE_MM`` with its own phase
+    (``look.wall_line_phase`` of the well's noise shifts), and ``plate.wall_highlights`` brightens the lines halfway
+    between them; nothing else changes, not the masks."""
+    size = (1216, 944)
+    settings = {"plaques.negative_plate": 1.0, "wells.emptied": 0.0, "post.jpeg": 0.0, "post.clarity": 0.0,
+                "post.bloom": 0.0, "post.noise": 0.0, "post.sharpen": 0.0, "camera.defocus_px": 0.0,
+                "plate.top_edge_through_floor": 0.0, "plate.floor_height_mm": 0.0}
+    plain, dark, bright = (small_scene("high", 6, **settings, **{"plate.wall_lines": a, "plate.wall_highlights": b})
+                           for a, b in ((0.0, 0.0), (1.0, 0.0), (0.0, 0.4)))
+    images = [render(scene, size) for scene in (plain, dark, bright)]
+    assert all(np.array_equal(images[0].wells, result.wells) for result in images[1:])
+    luminance = [result.image.astype(np.float64).mean(axis=2) for result in images]
+    view = camera_view(plain, *size)
+    wells, _, _ = wells_in_view(plain, view)
+    offsets = scene_textures(plain).well_offsets
+    u, v = pixel_centres_mm(view)
+    radius, wall, pixel_mm = plain.plate.well_radius_mm, plain.plate.wall_mm, 1.0 / view.px_per_mm
+    on_line, on_highlight = (np.zeros(u.shape, dtype=bool) for _ in range(2))
+    for i, well in enumerate(wells):
+        du, dv = u - well.center_mm[0], v - well.center_mm[1]
+        t = np.arctan2(dv, du)
+        for j, place in enumerate(WALL_LINE_PLACES):
+            after = WALL_LINE_PLACES[j + 1] if j + 1 < len(WALL_LINE_PLACES) else 1.0
+            wobble = WALL_LINE_WOBBLE_MM * np.cos(2 * t - wall_line_phase(*offsets[i], j))
+            off_centre = np.hypot(du, dv) - wobble
+            on_line |= np.abs(off_centre - radius - place * wall) < 0.5 * pixel_mm
+            on_highlight |= np.abs(off_centre - radius - 0.5 * (place + after) * wall) < 0.5 * pixel_mm
+    near = wall_band(plain, size, margin_px=-4.0)
+    darker, brighter = luminance[0] - luminance[1], luminance[2] - luminance[0]
+    assert on_line.sum() > 3000 and on_highlight.sum() > 3000
+    assert darker[on_line].mean() > 8.0  # levels on the lines
+    assert darker[near & ~ndimage.binary_dilation(on_line, iterations=2)].mean() < 0.2 * darker[on_line].mean()
+    assert brighter[on_highlight].mean() > 5.0
+    assert brighter[near & ~ndimage.binary_dilation(on_highlight, iterations=2)].mean() < 0.2 * brighter[on_highlight].mean()
+    for image in images[1:]:
+        assert np.array_equal(images[0].image[~near], image.image[~near])
 
 
 def test_the_band_over_the_walls_is_as_bright_as_asked():

@@ -47,11 +47,11 @@ def test_presets_load_and_sample_json_roundtrip(preset):
 # sha256 of sample_scene(load_config(preset), 3).model_dump_json(): sampling must not change without intent (a change
 # here changes every dataset rendered from these presets). Update only for a deliberate change of the sampling.
 SCENE_SHA256_SEED3 = {
-    "diverse": "19fb522a6b8ac1695617ea80fdd75b02c5331041a256b52b8da779f5d781f4ac",
-    "high": "e7dfb7a2f0b22399a15eb02f4258080fda7c0fca8ad9c592b08c89a013a8ff85",
-    "lightbox12": "71cc852338fa3b30da19a67ee7d664c43c4970584050d63ef03d823da53fb283",
-    "low": "c50dfc641ec00e441454a0a8e25e3a00093e9204ab4350a5379c22b8190ecda3",
-    "medium": "0df5ba7c54dc19e4cc95ca545b34a1c84cba6cb59b6560b3bf5a6c133c87586d",
+    "diverse": "6eae70c27aa5a0bc1711c713f1fb627a6745858e38b89060ba567eab8ac49b9b",
+    "high": "2a03153c88a6949062112a2b26af9bf15389e802e024f81c0d36a83aeac8f6b0",
+    "lightbox12": "a49678339cb192cf09b1975dab04f450e81cd21c1ed778dd3ef98da7f150c44c",
+    "low": "d09a8e3a73ea1d7d7a7a172bd6b9cb8bd0addfce076f985c8495ed058394becf",
+    "medium": "a3caae3935f221d1d6e7fd360d88e10bda3645e4de7cdcb9f40bfae9666185d9",
 }
 
 
@@ -407,6 +407,8 @@ def test_lysed_paleness_draws_the_remnants_colour_from_the_pale_palette_and_noth
                    "artifacts.scratch_haze": [0.2, 0.4]},
      {"artifacts.scratch_clearing": 0.95, "artifacts.scratch_softness_mm": 0.0, "artifacts.scratch_haze": 0.0}),
     ("plate_look", {"plate.crescent_veil": [0.02, 0.1]}, {"plate.crescent_veil": 0.0}),
+    ("plate_look", {"plate.wall_lines": [0.2, 0.5], "plate.wall_highlights": [0.05, 0.15]},
+     {"plate.wall_lines": 0.0, "plate.wall_highlights": 0.0}),
 ])
 def test_a_parameter_added_later_is_drawn_beside_the_others(part, drawn, fixed):
     for seed in range(4):

@@ -23,6 +23,13 @@ to the light through the open top: on IBV's wells the crescent's red and green r
 mix of about 0.1 toward 0.5-0.6 of the unstained light (two wells of IBV_plate1 fitted, in linear light)."""
 OUTLINE_WEIGHTS = (0.5, 1.0, 0.35, 0.5)
 """Darkness of the outlines (times ``plate_look.rim_darkness``): foot inner, foot outer, top inner, top outer."""
+WALL_LINE_PLACES = (0.12, 0.3, 0.55)
+"""Where the thin lines refracted by a wall (``plate_look.wall_lines``) lie across its band, as shares of its width
+from the floor's edge; its highlights (``plate_look.wall_highlights``) lie halfway between them and the next."""
+WALL_LINE_WOBBLE_MM = 0.12
+"""How far each refracted line wanders in and out around the well (two waves around it, a phase per well and line)."""
+
+
 SKIRT_DARKENING = 0.25
 """The skirt along the plate's outline passes this much less light at the outline itself."""
 RELIEF_RAISED, RELIEF_EMBOSS = 0.35, 0.65
@@ -80,3 +87,9 @@ def noise_grain_gain(sigma_px: float) -> float:
     weights = [math.exp(-0.5 * (i / sigma_px) ** 2) for i in range(-radius, radius + 1)]
     total = sum(weights)
     return 1.0 / sum((w / total) ** 2 for w in weights)
+
+
+def wall_line_phase(noise_x: float, noise_y: float, line: int) -> float:
+    """The phase (radians) of refracted line ``line``'s wobble in the well whose noise shifts are ``(noise_x,
+    noise_y)`` mm: an arithmetic hash, the same in both renderers."""
+    return 2.0 * math.pi * ((noise_x * 0.1373 * (line + 1) + noise_y * 0.0711 + 0.29 * line) % 1.0)

@@ -144,7 +144,7 @@ def _frame(scene: Scene, view: View, top_radius: float, foot_scale: float) -> np
         wall=plate.wall_mm, top_radius=top_radius, foot_scale=foot_scale, from_below=scene.camera.from_below,
         transmittance=look.transmittance, rim_darkness=look.rim_darkness, label_strength=look.label_strength,
         top_edge_through_floor=look.top_edge_through_floor, top_edge_blur=look.top_edge_blur_mm, wall_band=look.wall_band,
-        crescent_veil=look.crescent_veil,
+        crescent_veil=look.crescent_veil, wall_lines=look.wall_lines, wall_highlights=look.wall_highlights,
         tint_r=look.tint_rgb[0], tint_g=look.tint_rgb[1], tint_b=look.tint_rgb[2], is_desk=bg.kind == "desk",
         brightness=bg.brightness, desk_texture=bg.texture, frame_mm=bg.frame_mm, ruler=bg.ruler,
         sheen=DESK_SHEEN * bg.brightness if bg.kind == "desk" else 0.0, vignetting=light.vignetting,

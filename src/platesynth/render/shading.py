@@ -34,6 +34,9 @@ from platesynth.render.look import (
     RULER_TICKS_MM,
     RULER_WIDTH_MM,
     SKIRT_DARKENING,
+    WALL_LINE_PLACES,
+    WALL_LINE_WOBBLE_MM,
+    wall_line_phase,
 )
 from platesynth.render.sampling import clip01, grid_sample, ring, smeared_ring, to_plate
 
@@ -59,6 +62,8 @@ FRAME_DTYPE = np.dtype(
         ("top_edge_through_floor", np.float64),  # share of the top edge's outlines seen through a floor
         ("top_edge_blur", np.float64),  # width over which the top edge's outlines are smeared (mm)
         ("crescent_veil", np.float64),  # share of the light passing around the stain past the top edge
+        ("wall_lines", np.float64),  # darkness of the lines a wall refracts across its band
+        ("wall_highlights", np.float64),  # brightness of the highlights between them
         ("transmittance", np.float64),  # the plastic between the wells
         ("rim_darkness", np.float64),
         ("wall_band", np.float64),  # relative brightness over the walls' thickness
@@ -147,6 +152,37 @@ def past_top_edge(top_dist, f):
     return clip01((top_dist - f.top_radius) / math.hypot(f.pixel_mm, f.top_edge_blur) + 0.5)
 
 
+line_phase = njit(cache=True, nogil=True, inline="always")(wall_line_phase)
+
+
+@njit(cache=True, nogil=True, inline="always")
+def refracted_lines(well, du, dv, dist, f):
+    """Coverage of the thin lines a wall refracts across its band (:data:`WALL_LINE_PLACES`) and of the highlights
+    halfway between them and the next, each wobbling by :data:`WALL_LINE_WOBBLE_MM` in two waves around the well
+    (the phase :func:`~platesynth.render.look.wall_line_phase` of the well's noise shifts); drawn at the walls' foot,
+    ``(du, dv)`` from its centre at distance ``dist``."""
+    foot_radius = f.radius * f.foot_scale
+    width = f.wall * f.foot_scale
+    reach = WALL_LINE_WOBBLE_MM * f.foot_scale
+    if dist <= foot_radius - reach or dist >= foot_radius + width + reach or dist <= 0.0:
+        return 0.0, 0.0
+    c1 = du / dist
+    s1 = dv / dist
+    c2 = c1 * c1 - s1 * s1
+    s2 = 2.0 * c1 * s1
+    half = 0.5 * OUTLINE_WIDTH_MM
+    dark = 0.0
+    bright = 0.0
+    for j in range(len(WALL_LINE_PLACES)):
+        phase = line_phase(well.noise_x, well.noise_y, j)
+        wobble = reach * (c2 * math.cos(phase) + s2 * math.sin(phase))
+        place = WALL_LINE_PLACES[j]
+        after = WALL_LINE_PLACES[j + 1] if j + 1 < len(WALL_LINE_PLACES) else 1.0
+        dark += ring(dist, foot_radius + place * width + wobble, half, f.pixel_mm)
+        bright += ring(dist, foot_radius + 0.5 * (place + after) * width + wobble, half, f.pixel_mm)
+    return dark, bright
+
+
 @njit(cache=True, nogil=True, inline="always")
 def band_sheen(well, du, dv, dist):
     """The relative brightness change of the band over ``well``'s wall at ``(du, dv)`` from the well's centre, at
@@ -164,7 +200,7 @@ def band_sheen(well, du, dv, dist):
 
 
 @njit(cache=True, nogil=True, inline="always")
-def plastic(foot_dist, top_dist, disc, signed, relief, sheen, f):
+def plastic(foot_dist, top_dist, disc, signed, relief, sheen, lines, highlights, f):
     """Share of the light the plastic passes: the floor or the deck, the walls' band and outlines, the embossing
     (``relief``) and the skirt; ``disc`` is the pixel's coverage by the well's floor, ``foot_dist`` its distance from
     the centre of the walls' foot as the camera sees it. Where the foot's opening shows no floor, the camera sees
@@ -181,14 +217,14 @@ def plastic(foot_dist, top_dist, disc, signed, relief, sheen, f):
         + OUTLINE_WEIGHTS[1] * ring(foot_dist, foot_outer, line_half, f.pixel_mm)
         + behind_layer * (OUTLINE_WEIGHTS[2] * top_ring(top_dist, f.top_radius, line_half, f)
                           + OUTLINE_WEIGHTS[3] * top_ring(top_dist, f.top_radius + f.wall, line_half, f))
-    )
+    ) + f.wall_lines * lines
     band = 1.0 if foot_radius < foot_dist < foot_outer else 0.0
     # the foot's opening minus the floor: none where the foot lies at the floor's height
     band = min(band + max(clip01((foot_radius - foot_dist) / f.pixel_mm + 0.5) - disc, 0.0), 1.0)
     skirt_shade = 1.0 - SKIRT_DARKENING * clip01((signed + f.skirt) / f.skirt)
     # the thick plastic between the wells passes less light than a well's thin bottom
     passing = (f.transmittance * (1.0 - disc) + FLOOR_TRANSMITTANCE * disc) * (
-        1.0 + (f.wall_band + sheen) * band - f.rim_darkness * min(outlines, 1.0))
+        1.0 + (f.wall_band + sheen) * band + f.wall_highlights * highlights - f.rim_darkness * min(outlines, 1.0))
     return passing * ((1.0 - relief) * skirt_shade), band
 
 
@@ -292,7 +328,10 @@ def shade(
                 disc = clip01((f.radius - dist) / f.pixel_mm + 0.5)
                 relief, ink_r, ink_g, ink_b = relief_and_ink(u, v, texels_per_mm, relief_map, ink, f.label_strength)
                 sheen = band_sheen(well, fu, fv, foot_dist)
-                passing, band = plastic(foot_dist, top_dist, disc, signed, relief, sheen, f)
+                lines = highlights = 0.0
+                if f.wall_lines > 0.0 or f.wall_highlights > 0.0:
+                    lines, highlights = refracted_lines(well, fu, fv, foot_dist, f)
+                passing, band = plastic(foot_dist, top_dist, disc, signed, relief, sheen, lines, highlights, f)
                 # the band takes a share of its well's stain (a factor of 1 where the share is 0)
                 wall_r = 1.0 - band * (1.0 - well.wall_r)
                 wall_g = 1.0 - band * (1.0 - well.wall_g)

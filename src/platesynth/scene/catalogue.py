@@ -83,6 +83,11 @@ class PlateConfig(Section):
     wall_slant: Dist = number(0.0, -0.5, 0.5, "",
                               "how much brighter the band over a well's wall is on its side away from the camera's "
                               "axis than on the other, relative (the wall's inside seen at a slant through the floor)")
+    wall_lines: Dist = number(0.0, 0.0, 1.0, "",
+                              "darkness of the thin lines a thick wall refracts across its band, wandering a little "
+                              "around the well (relative to the walls' outlines)")
+    wall_highlights: Dist = number(0.0, 0.0, 0.5, "",
+                                   "brightness of the thin highlights between those lines, relative")
     wall_glints: Dist = number(0.0, 0.0, 0.5, "",
                                "sd of the band's uneven brightness around each well, relative (light refracted and "
                                "reflected by the thick wall: glints and shadows that change around the well)")

@@ -74,6 +74,9 @@ class PlateLook(_Concrete):
     labels_at_junction: bool = Field(
         False, description="the wells' label circles sit where four wells meet, each with a rib to its well")
     wall_glints: float = Field(0.0, description="sd of the band's uneven brightness around each well, relative")
+    wall_lines: float = Field(
+        0.0, description="darkness of the thin lines a wall refracts across its band, relative to its outlines")
+    wall_highlights: float = Field(0.0, description="brightness of the thin highlights between those lines, relative")
 
 
 class Stain(_Concrete):

@@ -156,6 +156,8 @@ def sample_scene(config: SceneConfig, seed: int) -> Scene:
         wall_glints=c.plate.draw("wall_glints", scene_rng(seed, "wall_glints")),
         labels_at_junction=c.plate.draw("labels_at_junction", scene_rng(seed, "label_place")),
         crescent_veil=c.plate.draw("crescent_veil", scene_rng(seed, "crescent_veil")),
+        wall_lines=c.plate.draw("wall_lines", scene_rng(seed, "wall_lines")),
+        wall_highlights=c.plate.draw("wall_highlights", scene_rng(seed, "wall_highlights")),
     )
 
     tilt = c.camera.draw("tilt_deg", rng)

@@ -29,6 +29,7 @@ from platesynth.errors import RenderError
 from platesynth.render.appearance import floor_texels_per_mm, floor_transmittance, stain_table, wall_sheen, wall_tints
 from platesynth.render.camera import REFERENCE_WIDTH, View, camera_view
 from platesynth.render.color import light_colour, srgb_to_linear
+from platesynth.render.look import WALL_LINE_PLACES, wall_line_phase
 from platesynth.render.raster import plate_relief, texels_per_mm
 from platesynth.render.textures import SceneTextures, scene_textures
 from platesynth.scene.concrete import Scene
@@ -122,6 +123,9 @@ def describe_scene(scene: Scene, size: tuple[int, int], texture_dir: str | Path)
             "wall_tints": wall_tints(scene, list(scene.wells), stain_table(scene, noise)[0]).tolist(),
             # and its brightness change around the well, (a1, b1, a2, b2, a3, b3) about plate angles
             "wall_sheens": wall_sheen(scene, list(scene.wells), view.principal_mm, noise.wall_glints).tolist(),
+            # the phases of the lines each wall refracts (look.wall_line_phase of the well's noise shifts)
+            "wall_line_phases": [[wall_line_phase(*offsets, line) for line in range(len(WALL_LINE_PLACES))]
+                                 for offsets in noise.well_offsets.tolist()],
         },
     }
 

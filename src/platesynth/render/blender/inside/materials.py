@@ -310,7 +310,8 @@ def blot_material(unevenness: PlateTexture) -> bpy.types.Material:
 
 def rim_material(well_radius: float) -> bpy.types.Material:
     """The walls' bands and outlines: ink (the ``ink`` attribute) over the share of the ring that a ring of
-    ``ring_half_width`` about ``ring_radius`` smeared over ``ring_smear`` covers (as the raster renderer's
+    ``ring_half_width`` about ``ring_radius`` (plus its wobble around the well, :func:`_wobble`) smeared over
+    ``ring_smear`` covers (as the raster renderer's
     ``smeared_ring``; all of it without a smear), faded towards white by the share ``rim_hidden_inside`` where the ray
     crossed the floors' plane (``z = 0``) within ``well_radius`` of the ring's ``rim_center``. The ink changes around
     the ring by the factor ``1 + sum_k a_k cos(k t) + b_k sin(k t)`` (the raster renderer's ``band_sheen``), ``t``
@@ -320,8 +321,10 @@ def rim_material(well_radius: float) -> bpy.types.Material:
     position = output(add(tree, "ShaderNodeNewGeometry"), "Position")
     centre = _attribute(tree, "rim_center", "Vector")
     across = vector_math(tree, "MULTIPLY", vector_math(tree, "SUBTRACT", position, centre), (1.0, 1.0, 0.0))  # in the ring's plane
-    offset = math(tree, "SUBTRACT", output(vector_math(tree, "LENGTH", across), "Value"), _attribute(tree, "ring_radius"))
-    sheen = _sheen(tree, across)
+    harmonics = _harmonics(tree, across)
+    radius = math(tree, "ADD", _attribute(tree, "ring_radius"), _wobble(harmonics, tree))
+    offset = math(tree, "SUBTRACT", output(vector_math(tree, "LENGTH", across), "Value"), radius)
+    sheen = _sheen(harmonics, tree)
     half_width = _attribute(tree, "ring_half_width")
     smear = math(tree, "MAXIMUM", _attribute(tree, "ring_smear"), 1e-3)  # a micrometre: float32 keeps the ratio
     half_smear = math(tree, "MULTIPLY", smear, 0.5)
@@ -342,20 +345,35 @@ def rim_material(well_radius: float) -> bpy.types.Material:
     return material
 
 
-def _sheen(tree: bpy.types.NodeTree, across: Any) -> bpy.types.NodeSocket:
-    """``sum_k a_k cos(k t) + b_k sin(k t)`` for k = 1, 2, 3: ``t`` the angle of the in-plane vector ``across``,
-    ``a`` and ``b`` the ``sheen_cosines`` and ``sheen_sines`` attributes."""
+def _harmonics(tree: bpy.types.NodeTree, across: Any) -> tuple[tuple[Any, Any, Any], tuple[Any, Any, Any]]:
+    """``(cos t, cos 2t, cos 3t)`` and ``(sin t, sin 2t, sin 3t)``: ``t`` the angle of the in-plane vector
+    ``across``."""
     unit = feed(tree, add(tree, "ShaderNodeSeparateXYZ"), Vector=output(vector_math(tree, "NORMALIZE", across), "Vector"))
     c1, s1 = output(unit, "X"), output(unit, "Y")
     c2 = math(tree, "SUBTRACT", math(tree, "MULTIPLY", c1, c1), math(tree, "MULTIPLY", s1, s1))
     s2 = math(tree, "MULTIPLY", math(tree, "MULTIPLY", c1, s1), 2.0)
     c3 = math(tree, "SUBTRACT", math(tree, "MULTIPLY", c1, c2), math(tree, "MULTIPLY", s1, s2))
     s3 = math(tree, "ADD", math(tree, "MULTIPLY", s1, c2), math(tree, "MULTIPLY", c1, s2))
+    return (c1, c2, c3), (s1, s2, s3)
+
+
+def _sheen(harmonics: tuple[tuple[Any, Any, Any], tuple[Any, Any, Any]], tree: bpy.types.NodeTree) -> bpy.types.NodeSocket:
+    """``sum_k a_k cos(k t) + b_k sin(k t)`` for k = 1, 2, 3 (:func:`_harmonics`), ``a`` and ``b`` the
+    ``sheen_cosines`` and ``sheen_sines`` attributes."""
+    (c1, c2, c3), (s1, s2, s3) = harmonics
     cosines = feed(tree, add(tree, "ShaderNodeCombineXYZ"), X=c1, Y=c2, Z=c3)
     sines = feed(tree, add(tree, "ShaderNodeCombineXYZ"), X=s1, Y=s2, Z=s3)
     along_cosines = output(vector_math(tree, "DOT_PRODUCT", _attribute(tree, "sheen_cosines", "Vector"), cosines), "Value")
     along_sines = output(vector_math(tree, "DOT_PRODUCT", _attribute(tree, "sheen_sines", "Vector"), sines), "Value")
     return math(tree, "ADD", along_cosines, along_sines)
+
+
+def _wobble(harmonics: tuple[tuple[Any, Any, Any], tuple[Any, Any, Any]], tree: bpy.types.NodeTree) -> bpy.types.NodeSocket:
+    """``x cos 2t + y sin 2t``: how far the ring lies out at angle ``t``, ``(x, y)`` the ``ring_wobble``
+    attribute."""
+    (_, c2, _), (_, s2, _) = harmonics
+    second = feed(tree, add(tree, "ShaderNodeCombineXYZ"), X=c2, Y=s2)
+    return output(vector_math(tree, "DOT_PRODUCT", _attribute(tree, "ring_wobble", "Vector"), second), "Value")
 
 
 def mask_material() -> bpy.types.Material:

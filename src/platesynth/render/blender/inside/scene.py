@@ -30,6 +30,8 @@ from platesynth.render.look import (
     OUTLINE_WIDTH_MM,
     RULER_WIDTH_MM,
     TOP_EDGE_OFFSET_MM,
+    WALL_LINE_PLACES,
+    WALL_LINE_WOBBLE_MM,
 )
 
 PASS_PROPERTY = "platesynth_pass"
@@ -157,7 +159,9 @@ def _rims(
     brightness (a disc at the foot, hidden where the ray passes a floor). Seen from below, all but the plate look's
     ``top_edge_through_floor`` of the top edge's outlines is hidden where the ray has passed a well's floor (the
     raster renderer's ``behind_layer``). The band and the disc take their well's tint (``view["wall_tints"]``) and
-    its brightness change around the well (``view["wall_sheens"]``)."""
+    its brightness change around the well (``view["wall_sheens"]``). With ``plate_look.wall_lines`` or
+    ``wall_highlights``, thin dark lines and bright highlights lie across the band at the foot
+    (``WALL_LINE_PLACES``), each wandering around the well in two waves (``view["wall_line_phases"]``)."""
     plate_data = scene_data["plate"]
     radius, wall, depth = (float(plate_data[k]) for k in ("well_radius_mm", "wall_mm", "well_depth_mm"))
     foot = -float(scene_data["plate_look"]["floor_height_mm"])
@@ -182,17 +186,29 @@ def _rims(
     if foot < 0.0:  # the floor hides the disc's middle
         rings.append((0.75 * radius, 0.25 * radius, 0.0, foot + step, band, 1.0, True))
     n = len(centres)
+    wobbles = [np.zeros((n, 2))] * len(rings)  # each ring's wobble around the well: (cos, sin) of its phase, scaled
+    lines, highlights = (float(scene_data["plate_look"][k]) for k in ("wall_lines", "wall_highlights"))
+    if lines > 0.0 or highlights > 0.0:  # the lines a wall refracts across its band, and highlights between them
+        phases = np.asarray(view["wall_line_phases"], dtype=np.float64)
+        for j, place in enumerate(WALL_LINE_PLACES):
+            after = WALL_LINE_PLACES[j + 1] if j + 1 < len(WALL_LINE_PLACES) else 1.0
+            # about world angles (y flipped: the second harmonic's sine negated)
+            wobble = WALL_LINE_WOBBLE_MM * np.column_stack([np.cos(phases[:, j]), -np.sin(phases[:, j])])
+            for share, ink in ((place, 1.0 - lines * darkness), (0.5 * (place + after), 1.0 + highlights)):
+                rings.append((radius + share * wall, line / 2, 0.0, foot + (len(rings) + 1) * step, ink, 0.0, False))
+                wobbles.append(wobble)
     tints = np.asarray(view["wall_tints"], dtype=np.float64)
     inks = np.concatenate([r[4] * (tints if r[6] else np.ones((n, 3))) for r in rings])
     # the sheen's Fourier coefficients, relative to the band's ink, about world angles (y flipped: sines negated)
     sheens = np.asarray(view["wall_sheens"], dtype=np.float64).reshape(n, 3, 2) / band * np.array([1.0, -1.0])
     cosines = np.concatenate([sheens[:, :, 0] * r[6] for r in rings])
     sines = np.concatenate([sheens[:, :, 1] * r[6] for r in rings])
+    reach = np.repeat([r[1] + r[2] / 2 for r in rings], n) + np.linalg.norm(np.concatenate(wobbles), axis=1)
     rims = geometry.annuli(
         "platesynth.rims",
         np.concatenate([centres] * len(rings)),
-        np.repeat([r[0] - r[1] - r[2] / 2 for r in rings], n),
-        np.repeat([r[0] + r[1] + r[2] / 2 for r in rings], n),
+        np.repeat([r[0] for r in rings], n) - reach,
+        np.repeat([r[0] for r in rings], n) + reach,
         np.repeat([r[3] for r in rings], n),
         {
             "ink": inks,
@@ -203,6 +219,7 @@ def _rims(
             "ring_smear": np.repeat([r[2] for r in rings], n),
             "sheen_cosines": cosines,
             "sheen_sines": sines,
+            "ring_wobble": _with_z(np.concatenate(wobbles), 0.0),
         },
     )
     rims.data.materials.append(materials.rim_material(radius))
