@@ -34,7 +34,7 @@ render() {
 # session), its walls' outlines and its wells' centres darkened and its colour casts weakened (twelfth), and its
 # walls' band darkened and tinted over a foot below the floors and its pipette scratches tilted (fifteenth), and
 # its walls' top edge smeared and its sharpening moved to the luminance (seventeenth), and its scratches made greyer
-# and softer (eighteenth), and its floors past the walls' top edge veiled (nineteenth).
+# and softer (eighteenth).
 # These settings, high's values of then, give the same configurations as then (compared with the manifests of its
 # data, and the first images and masks of each part pixel for pixel). The plaques' two apply to the high part
 # only: crowded-soft.yaml sets its own. AS_SHIPPED=0, or a HIGH_CONFIG, renders today's high instead.
@@ -56,7 +56,7 @@ if [ "$AS_SHIPPED" = 1 ] && [ -z "$HIGH_CONFIG" ]; then
                   --set "artifacts.pipette_tilt_deg=0" --set "artifacts.pipette_inset_mm=0"
                   --set "plate.top_edge_blur_mm=0" --set "post.sharpen_luma=0"
                   --set "artifacts.scratch_clearing=0.95" --set "artifacts.scratch_haze=0"
-                  --set "artifacts.scratch_softness_mm=0" --set "plate.crescent_veil=0")
+                  --set "artifacts.scratch_softness_mm=0")
     SHIPPED_PLAQUES=(--set "plaques.centre_residual=[0.15,0.4]" --set "plaques.clearness=[0.95,1.0]")
 fi
 render high 450 201 high --set plaques.negative_plate=0.2 ${HIGH_CONFIG:+--config "$HIGH_CONFIG"} "${SHIPPED_LOOK[@]}" \

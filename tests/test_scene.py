@@ -48,7 +48,7 @@ def test_presets_load_and_sample_json_roundtrip(preset):
 # here changes every dataset rendered from these presets). Update only for a deliberate change of the sampling.
 SCENE_SHA256_SEED3 = {
     "diverse": "6eae70c27aa5a0bc1711c713f1fb627a6745858e38b89060ba567eab8ac49b9b",
-    "high": "2a03153c88a6949062112a2b26af9bf15389e802e024f81c0d36a83aeac8f6b0",
+    "high": "6c8908f50df91208668be5aabdb4810756574f24287e8a5c33ed7cda7deb9224",
     "lightbox12": "a49678339cb192cf09b1975dab04f450e81cd21c1ed778dd3ef98da7f150c44c",
     "low": "d09a8e3a73ea1d7d7a7a172bd6b9cb8bd0addfce076f985c8495ed058394becf",
     "medium": "a3caae3935f221d1d6e7fd360d88e10bda3645e4de7cdcb9f40bfae9666185d9",
