@@ -28,8 +28,6 @@ WALL_LINE_PLACES = (0.12, 0.3, 0.55)
 from the floor's edge; its highlights (``plate_look.wall_highlights``) lie halfway between them and the next."""
 WALL_LINE_WOBBLE_MM = 0.12
 """How far each refracted line wanders in and out around the well (two waves around it, a phase per well and line)."""
-
-
 SKIRT_DARKENING = 0.25
 """The skirt along the plate's outline passes this much less light at the outline itself."""
 RELIEF_RAISED, RELIEF_EMBOSS = 0.35, 0.65

@@ -206,8 +206,9 @@ def plastic(foot_dist, top_dist, disc, signed, relief, sheen, lines, highlights,
     the centre of the walls' foot as the camera sees it. Where the foot's opening shows no floor, the camera sees
     the inside of the wall below the floor: it takes the band's brightness, changed by ``sheen`` (relative) where
     the pixel lies (:func:`band_sheen`). Seen from below, the walls' top edge lies behind the floor: only
-    ``top_edge_through_floor`` of its outlines shows through it. Returns the share passed and the pixel's coverage by
-    the band (0..1)."""
+    ``top_edge_through_floor`` of its outlines shows through it. ``lines`` and ``highlights`` are the pixel's
+    coverage by the lines the wall refracts and by their highlights (:func:`refracted_lines`), darkened and brightened
+    by ``wall_lines`` and ``wall_highlights``. Returns the share passed and the pixel's coverage by the band (0..1)."""
     behind_layer = 1.0 - disc * (1.0 - f.top_edge_through_floor) if f.from_below else 1.0
     line_half = 0.5 * OUTLINE_WIDTH_MM
     foot_radius = f.radius * f.foot_scale

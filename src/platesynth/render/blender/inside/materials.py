@@ -322,9 +322,9 @@ def rim_material(well_radius: float) -> bpy.types.Material:
     centre = _attribute(tree, "rim_center", "Vector")
     across = vector_math(tree, "MULTIPLY", vector_math(tree, "SUBTRACT", position, centre), (1.0, 1.0, 0.0))  # in the ring's plane
     harmonics = _harmonics(tree, across)
-    radius = math(tree, "ADD", _attribute(tree, "ring_radius"), _wobble(harmonics, tree))
+    radius = math(tree, "ADD", _attribute(tree, "ring_radius"), _wobble(tree, harmonics))
     offset = math(tree, "SUBTRACT", output(vector_math(tree, "LENGTH", across), "Value"), radius)
-    sheen = _sheen(harmonics, tree)
+    sheen = _sheen(tree, harmonics)
     half_width = _attribute(tree, "ring_half_width")
     smear = math(tree, "MAXIMUM", _attribute(tree, "ring_smear"), 1e-3)  # a micrometre: float32 keeps the ratio
     half_smear = math(tree, "MULTIPLY", smear, 0.5)
@@ -357,7 +357,7 @@ def _harmonics(tree: bpy.types.NodeTree, across: Any) -> tuple[tuple[Any, Any, A
     return (c1, c2, c3), (s1, s2, s3)
 
 
-def _sheen(harmonics: tuple[tuple[Any, Any, Any], tuple[Any, Any, Any]], tree: bpy.types.NodeTree) -> bpy.types.NodeSocket:
+def _sheen(tree: bpy.types.NodeTree, harmonics: tuple[tuple[Any, Any, Any], tuple[Any, Any, Any]]) -> bpy.types.NodeSocket:
     """``sum_k a_k cos(k t) + b_k sin(k t)`` for k = 1, 2, 3 (:func:`_harmonics`), ``a`` and ``b`` the
     ``sheen_cosines`` and ``sheen_sines`` attributes."""
     (c1, c2, c3), (s1, s2, s3) = harmonics
@@ -368,7 +368,7 @@ def _sheen(harmonics: tuple[tuple[Any, Any, Any], tuple[Any, Any, Any]], tree: b
     return math(tree, "ADD", along_cosines, along_sines)
 
 
-def _wobble(harmonics: tuple[tuple[Any, Any, Any], tuple[Any, Any, Any]], tree: bpy.types.NodeTree) -> bpy.types.NodeSocket:
+def _wobble(tree: bpy.types.NodeTree, harmonics: tuple[tuple[Any, Any, Any], tuple[Any, Any, Any]]) -> bpy.types.NodeSocket:
     """``x cos 2t + y sin 2t``: how far the ring lies out at angle ``t``, ``(x, y)`` the ``ring_wobble``
     attribute."""
     (_, c2, _), (_, s2, _) = harmonics
