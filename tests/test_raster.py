@@ -12,7 +12,13 @@ from platesynth.render import postprocess as pp
 from platesynth.render import render
 from platesynth.render.appearance import stain_table, wall_sheen, wall_tints
 from platesynth.render.color import srgb_to_linear
-from platesynth.render.look import CRESCENT_LIGHT, WALL_LINE_PLACES, WALL_LINE_WOBBLE_MM, wall_line_phase
+from platesynth.render.look import (
+    CRESCENT_LIGHT,
+    WALL_HIGHLIGHT_PLACES,
+    WALL_LINE_PLACES,
+    WALL_LINE_WOBBLE_MM,
+    wall_line_phase,
+)
 from platesynth.render.masks import clean_isolated_pixels
 from platesynth.render.raster import camera_view, parallax, plate_relief, render_raster, wells_in_view
 from platesynth.render.result import plaque_counts
@@ -346,12 +352,11 @@ def test_the_walls_refracted_lines_lie_where_asked():
     for i, well in enumerate(wells):
         du, dv = u - well.center_mm[0], v - well.center_mm[1]
         t = np.arctan2(dv, du)
-        for j, place in enumerate(WALL_LINE_PLACES):
-            after = WALL_LINE_PLACES[j + 1] if j + 1 < len(WALL_LINE_PLACES) else 1.0
+        for j, (place, highlight) in enumerate(zip(WALL_LINE_PLACES, WALL_HIGHLIGHT_PLACES, strict=True)):
             wobble = WALL_LINE_WOBBLE_MM * np.cos(2 * t - wall_line_phase(*offsets[i], j))
             off_centre = np.hypot(du, dv) - wobble
             on_line |= np.abs(off_centre - radius - place * wall) < 0.5 * pixel_mm
-            on_highlight |= np.abs(off_centre - radius - 0.5 * (place + after) * wall) < 0.5 * pixel_mm
+            on_highlight |= np.abs(off_centre - radius - highlight * wall) < 0.5 * pixel_mm
     near = wall_band(plain, size, margin_px=-4.0)
     darker, brighter = luminance[0] - luminance[1], luminance[2] - luminance[0]
     assert on_line.sum() > 3000 and on_highlight.sum() > 3000

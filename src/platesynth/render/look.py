@@ -25,7 +25,10 @@ OUTLINE_WEIGHTS = (0.5, 1.0, 0.35, 0.5)
 """Darkness of the outlines (times ``plate_look.rim_darkness``): foot inner, foot outer, top inner, top outer."""
 WALL_LINE_PLACES = (0.12, 0.3, 0.55)
 """Where the thin lines refracted by a wall (``plate_look.wall_lines``) lie across its band, as shares of its width
-from the floor's edge; its highlights (``plate_look.wall_highlights``) lie halfway between them and the next."""
+from the floor's edge..."""
+WALL_HIGHLIGHT_PLACES = tuple(0.5 * (place + after) for place, after in zip(WALL_LINE_PLACES, WALL_LINE_PLACES[1:] + (1.0,)))
+"""...and its highlights (``plate_look.wall_highlights``): halfway between each line and the next (or the band's
+outer edge)."""
 WALL_LINE_WOBBLE_MM = 0.12
 """How far each refracted line wanders in and out around the well (two waves around it, a phase per well and line)."""
 SKIRT_DARKENING = 0.25

@@ -34,6 +34,7 @@ from platesynth.render.look import (
     RULER_TICKS_MM,
     RULER_WIDTH_MM,
     SKIRT_DARKENING,
+    WALL_HIGHLIGHT_PLACES,
     WALL_LINE_PLACES,
     WALL_LINE_WOBBLE_MM,
     wall_line_phase,
@@ -158,7 +159,7 @@ line_phase = njit(cache=True, nogil=True, inline="always")(wall_line_phase)
 @njit(cache=True, nogil=True, inline="always")
 def refracted_lines(well, du, dv, dist, f):
     """Coverage of the thin lines a wall refracts across its band (:data:`WALL_LINE_PLACES`) and of the highlights
-    halfway between them and the next, each wobbling by :data:`WALL_LINE_WOBBLE_MM` in two waves around the well
+    between them (:data:`WALL_HIGHLIGHT_PLACES`), each wobbling by :data:`WALL_LINE_WOBBLE_MM` in two waves around the well
     (the phase :func:`~platesynth.render.look.wall_line_phase` of the well's noise shifts); drawn at the walls' foot,
     ``(du, dv)`` from its centre at distance ``dist``."""
     foot_radius = f.radius * f.foot_scale
@@ -176,10 +177,8 @@ def refracted_lines(well, du, dv, dist, f):
     for j in range(len(WALL_LINE_PLACES)):
         phase = line_phase(well.noise_x, well.noise_y, j)
         wobble = reach * (c2 * math.cos(phase) + s2 * math.sin(phase))
-        place = WALL_LINE_PLACES[j]
-        after = WALL_LINE_PLACES[j + 1] if j + 1 < len(WALL_LINE_PLACES) else 1.0
-        dark += ring(dist, foot_radius + place * width + wobble, half, f.pixel_mm)
-        bright += ring(dist, foot_radius + 0.5 * (place + after) * width + wobble, half, f.pixel_mm)
+        dark += ring(dist, foot_radius + WALL_LINE_PLACES[j] * width + wobble, half, f.pixel_mm)
+        bright += ring(dist, foot_radius + WALL_HIGHLIGHT_PLACES[j] * width + wobble, half, f.pixel_mm)
     return dark, bright
 
 

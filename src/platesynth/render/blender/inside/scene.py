@@ -30,6 +30,7 @@ from platesynth.render.look import (
     OUTLINE_WIDTH_MM,
     RULER_WIDTH_MM,
     TOP_EDGE_OFFSET_MM,
+    WALL_HIGHLIGHT_PLACES,
     WALL_LINE_PLACES,
     WALL_LINE_WOBBLE_MM,
 )
@@ -190,11 +191,10 @@ def _rims(
     lines, highlights = (float(scene_data["plate_look"][k]) for k in ("wall_lines", "wall_highlights"))
     if lines > 0.0 or highlights > 0.0:  # the lines a wall refracts across its band, and highlights between them
         phases = np.asarray(view["wall_line_phases"], dtype=np.float64)
-        for j, place in enumerate(WALL_LINE_PLACES):
-            after = WALL_LINE_PLACES[j + 1] if j + 1 < len(WALL_LINE_PLACES) else 1.0
+        for j, (place, highlight) in enumerate(zip(WALL_LINE_PLACES, WALL_HIGHLIGHT_PLACES, strict=True)):
             # about world angles (y flipped: the second harmonic's sine negated)
             wobble = WALL_LINE_WOBBLE_MM * np.column_stack([np.cos(phases[:, j]), -np.sin(phases[:, j])])
-            for share, ink in ((place, 1.0 - lines * darkness), (0.5 * (place + after), 1.0 + highlights)):
+            for share, ink in ((place, 1.0 - lines * darkness), (highlight, 1.0 + highlights)):
                 rings.append((radius + share * wall, line / 2, 0.0, foot + (len(rings) + 1) * step, ink, 0.0, False))
                 wobbles.append(wobble)
     tints = np.asarray(view["wall_tints"], dtype=np.float64)
