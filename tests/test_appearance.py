@@ -70,6 +70,59 @@ def test_centre_residual_makes_a_paler_centre(base_scene):
     assert clearing[(distance > 0.7) & (distance < 0.8)].mean() > 0.8
 
 
+def test_residual_mottle_leaves_patches_of_stain_inside_a_plaque(base_scene):
+    """``plaque_look.residual_mottle``: the share of stain left in a cleared plaque varies in patches around its mean
+    (0.03), by this sd, clipped at 0; the stain around the plaque stays as it was."""
+    scene, well = base_scene
+    col, row = (int(c * TEXELS_PER_MM) for c in well.center_mm)
+    reach = int(0.4 * TEXELS_PER_MM)  # the plaque's core: 0.4 of its radius, clear of its soft edge
+    yy, xx = np.mgrid[-reach:reach, -reach:reach]
+    inside = np.hypot(yy, xx) < reach
+    core = (row + yy[inside], col + xx[inside])
+    beside = (row, col + int(5 * TEXELS_PER_MM))
+
+    def green_absorbance(mottle: float) -> tuple[np.ndarray, float]:
+        look = PlaqueLook(fray=0.0, residual_mottle=mottle)
+        floor = appearance.floor_transmittance(scene.model_copy(update={"plaque_look": look}), TEXELS_PER_MM)
+        absorbance = -np.log(floor[..., 1])
+        return absorbance[core] / absorbance[beside], float(floor[beside][1])
+
+    even, outside_even = green_absorbance(0.03)
+    patchy, outside_patchy = green_absorbance(0.2)
+    assert outside_patchy == outside_even
+    # the core's absorbance, relative to the stain beside the plaque: nearly even with the default (0.02-0.18, sd
+    # 0.04); with 0.2 in patches from nearly clear to three quarters of the stain's
+    assert even.max() < 0.2 and even.std() < 0.05
+    assert patchy.max() > 0.6 and patchy.std() > 4 * even.std()
+    assert patchy.mean() > even.mean() + 0.15  # the share left is clipped at 0: more patchy is more stain on average
+
+
+def test_residual_tint_gives_the_stain_left_in_a_plaque_the_lysed_colour(base_scene):
+    """``plaque_look.residual_tint`` 1: the stain left at a half-cleared plaque's centre has the colour of what a
+    lysed well keeps (the ratios of its absorbances across channels); 0: the layer's own colour."""
+    scene, well = base_scene
+    pale = {"lysed_paleness": 1.0, "lysed_hue_deg": 230.0, "lysed_saturation": 0.4}
+    scene = scene.model_copy(update={
+        "stain": scene.stain.model_copy(update=pale),
+        "plaques": (scene.plaques[0].model_copy(update={"clearness": 0.5}),)})
+    table = appearance.stain_table(scene, scene_textures(scene))[0]
+    col, row = (int(c * TEXELS_PER_MM) for c in well.center_mm)
+
+    def absorbance_ratios(tint: float) -> np.ndarray:
+        look = PlaqueLook(fray=0.0, centre_residual=0.0, residual_tint=tint)
+        floor = appearance.floor_transmittance(scene.model_copy(update={"plaque_look": look}), TEXELS_PER_MM)
+        t = table["translucency"]
+        absorbance = -np.log((floor[row, col] - t) / (1.0 - t))
+        return absorbance / absorbance[1]
+
+    layer = np.array([table["absorbance_r"], table["absorbance_g"], table["absorbance_b"]])
+    lysed = np.array([table["lysed_absorbance_r"], table["lysed_absorbance_g"], table["lysed_absorbance_b"]])
+    assert not np.allclose(layer / layer[1], lysed / lysed[1], atol=0.05)
+    np.testing.assert_allclose(absorbance_ratios(0.0), layer / layer[1], atol=1e-3)
+    # half cleared: half of what is left takes the lysed colour, half keeps the layer's
+    np.testing.assert_allclose(absorbance_ratios(1.0), (layer + lysed) / (layer + lysed)[1], atol=1e-3)
+
+
 def test_rim_is_a_band_on_the_outline(base_scene):
     scene, well = base_scene
     distance, _, rim = clearing_profile(scene, well, PlaqueLook(fray=0.0, rim=0.5))

@@ -47,11 +47,11 @@ def test_presets_load_and_sample_json_roundtrip(preset):
 # sha256 of sample_scene(load_config(preset), 3).model_dump_json(): sampling must not change without intent (a change
 # here changes every dataset rendered from these presets). Update only for a deliberate change of the sampling.
 SCENE_SHA256_SEED3 = {
-    "diverse": "6eae70c27aa5a0bc1711c713f1fb627a6745858e38b89060ba567eab8ac49b9b",
-    "high": "6c8908f50df91208668be5aabdb4810756574f24287e8a5c33ed7cda7deb9224",
-    "lightbox12": "a49678339cb192cf09b1975dab04f450e81cd21c1ed778dd3ef98da7f150c44c",
-    "low": "d09a8e3a73ea1d7d7a7a172bd6b9cb8bd0addfce076f985c8495ed058394becf",
-    "medium": "a3caae3935f221d1d6e7fd360d88e10bda3645e4de7cdcb9f40bfae9666185d9",
+    "diverse": "6c41911b3263420f403789d6d1ed63ea1c49bc8117e90ac8117d4d436064a73e",
+    "high": "499868833bdf31763f7caf39b84b038d5d47d3a4900342c7692d7a838c5ef65d",
+    "lightbox12": "fe52c7931d18716aaaa60d538dab5ae49d1db1b94e00a22048d54d41d3b66ff9",
+    "low": "accff859e63de7b64374c7ac72682879fb5f4ad123495969131fab6985286aad",
+    "medium": "4f85849e6a4c704f7679479b282036781f1a9090582af9793333a82878b1abd1",
 }
 
 
@@ -397,6 +397,8 @@ def test_lysed_paleness_draws_the_remnants_colour_from_the_pale_palette_and_noth
     ("plate_look", {"plate.floor_height_mm": [1.0, 3.0]}, {"plate.floor_height_mm": 0.0}),
     ("plate_look", {"plate.wall_stain": [0.01, 0.05]}, {"plate.wall_stain": 0.0}),
     ("plaque_look", {"plaques.lumps": [0.05, 0.1]}, {"plaques.lumps": 0.0}),
+    ("plaque_look", {"plaques.residual_mottle": [0.1, 0.2], "plaques.residual_tint": [0.5, 1.0]},
+     {"plaques.residual_mottle": 0.03, "plaques.residual_tint": 0.0}),
     ("stain", {"stain.lysed_speckle": [0.3, 0.6]}, {"stain.lysed_speckle": 0.0}),
     ("post", {"post.sharpen_luma": [0.5, 1.0]}, {"post.sharpen_luma": 0.0}),
     ("plate_look", {"plate.top_edge_blur_mm": [0.2, 0.6]}, {"plate.top_edge_blur_mm": 0.0}),

@@ -112,8 +112,9 @@ CORE_DIP_SHARPNESS = 3.0
 """A plaque's centre clears less by ``plaque_look.centre_residual * exp(-SHARPNESS * (r / R)**2)``."""
 RIM_BAND = 0.35
 """The darker rim is a Gaussian band this many edge widths wide (sd) on the outline."""
-RESIDUAL_MEAN, RESIDUAL_SPREAD, RESIDUAL_MAX = 0.03, 0.03, 0.2
-"""Share of the stain left inside a cleared plaque: mean, noise amplitude (unit-sd residual tile) and cap."""
+RESIDUAL_MEAN = 0.03
+"""Share of the stain left inside a cleared plaque, on average (``plaque_look.residual_mottle`` times the unit-sd
+residual tile spreads it, between 0 and 1)."""
 
 # ---- marks
 RAGGED_SCALES = ((0.9, 0.5), (0.3, 0.3), (0.1, 0.2))
@@ -184,6 +185,8 @@ STAIN_DTYPE = np.dtype(
         ("lysed_absorbance_g", np.float64),
         ("lysed_absorbance_b", np.float64),
         ("scratch_shade", np.float64),  # light the scratched plastic loses per unit of scraped stain
+        ("residual_mottle", np.float64),  # the plaque look's unevenness of the stain left inside plaques
+        ("residual_tint", np.float64),  # and the share of it in the lysed colour
     ]
 )
 """The plate-wide stain (a one-row array, :func:`stain_table`)."""
@@ -270,7 +273,8 @@ def stain_table(scene: Scene, textures: SceneTextures) -> np.ndarray:
                 math.cos(math.radians(stain.rim_mottle_angle_deg)), math.sin(math.radians(stain.rim_mottle_angle_deg)),
                 stain.rim_mottle_patches, stain.meniscus, stain.lysed_density, stain.lysed_residue, stain.lysed_strands,
                 stain.lysed_grain, stain.lysed_speckle, stain.lysed_disc, stain.lysed_disc_radius, clump_level(stain.lysed_clumps), *absorbance,
-                *lysed_absorbance, scratch_shade(scene))
+                *lysed_absorbance, scratch_shade(scene), scene.plaque_look.residual_mottle,
+                scene.plaque_look.residual_tint)
     return table
 
 
@@ -388,17 +392,19 @@ def monolayer_density(u, v, du, dv, dist, radius, well, stain, low_grid, fibre_g
 
 
 @njit(cache=True, nogil=True, inline="always")
-def changed_density(density, u, v, well, clearing, rim, scratched, speck, residual_tile):
-    """``density`` cleared by plaques (``clearing`` 0..1, with the residual stain left inside), thickened along
+def changed_density(density, lysed, u, v, well, stain, clearing, rim, scratched, speck, residual_tile):
+    """``density`` cleared by plaques (``clearing`` 0..1, with the residual stain left inside, uneven by the plate's
+    ``stain.residual_mottle`` and taking the lysed colour by ``stain.residual_tint``), thickened along
     their rims (``rim``, relative), scraped by scratches (``scratched`` 0..1) and darkened by specks (``speck``,
     added density)."""
     if clearing > 0.0:
         residual = tile_sample(residual_tile, (u + well.noise_y) / RESIDUAL_CELL_MM, (v + well.noise_x) / RESIDUAL_CELL_MM)
-        residual = min(max(RESIDUAL_MEAN + RESIDUAL_SPREAD * residual, 0.0), RESIDUAL_MAX)
+        residual = min(max(RESIDUAL_MEAN + stain.residual_mottle * residual, 0.0), 1.0)
         density *= 1.0 - clearing * (1.0 - residual)
+        lysed += (1.0 - lysed) * stain.residual_tint * clearing
     if rim > 0.0:
         density *= 1.0 + rim
-    return density * (1.0 - scratched) + speck
+    return density * (1.0 - scratched) + speck, lysed
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -726,8 +732,8 @@ def _bake_floor(texel_mm, a1x, a1y, pitch, rows, cols, radius, wells, stain, low
                 continue
             density, lysed = monolayer_density(u, v, du, dv, dist, radius, well, st, low_grid, fibre_grid, fine_tile,
                                                mottle_tile)
-            density = changed_density(density, u, v, well, clearing[y, x], rim[y, x], scratched[y, x], specks[y, x],
-                                      residual_tile)
+            density, lysed = changed_density(density, lysed, u, v, well, st, clearing[y, x], rim[y, x], scratched[y, x],
+                                             specks[y, x], residual_tile)
             r, g, b = layer_transmittance(density, st, lysed, scratched[y, x])
             out[y, x, 0] = r
             out[y, x, 1] = g

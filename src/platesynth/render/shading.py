@@ -344,8 +344,8 @@ def shade(
                 if disc > 0.0 and well.emptied < 0.5:
                     density, lysed = appearance.monolayer_density(u, v, du, dv, dist, f.radius, well, st, low_grid,
                                                                   fibre_grid, fine_tile, mottle_tile)
-                    density = appearance.changed_density(density, u, v, well, clearing[y, x], rim[y, x],
-                                                         scratched[y, x], specks[y, x], residual_tile)
+                    density, lysed = appearance.changed_density(density, lysed, u, v, well, st, clearing[y, x],
+                                                                rim[y, x], scratched[y, x], specks[y, x], residual_tile)
                     layer_r, layer_g, layer_b = appearance.layer_transmittance(density, st, lysed, scratched[y, x])
                     layer_r = layer_r * disc + 1.0 - disc
                     layer_g = layer_g * disc + 1.0 - disc

@@ -217,6 +217,12 @@ class PlaquesConfig(Section):
                          "or in, share of its radius (crenellated, cauliflower-like edges; the plaque masks follow "
                          "them; 0: the smooth Fourier outline)")
     centre_residual: Dist = number(0.02, 0.0, 0.9, "", "share of the clearing a plaque's centre lacks (paler centre)")
+    residual_mottle: Dist = number(0.03, 0.0, 0.3, "", "unevenness of the stain left inside a plaque: sd of the share "
+                                   "left, in patches of about a tenth of a millimetre (0.03: a nearly even clearing; "
+                                   "0.1-0.2: the mottled lilac inside the photos' large plaques)")
+    residual_tint: Dist = number(0.0, 0.0, 1.0, "", "share of the stain left inside a plaque that takes the colour of "
+                                 "what a lysed well keeps (stain.lysed_paleness: a paler, greyer, bluer lilac than the "
+                                 "intact layer's; 0: the layer's colour)")
     halo: Dist = number(0.0, 0.0, 1.0, "", "clearing of the soft halo just outside a plaque's outline")
     halo_width: Dist = number(0.5, 0.01, 3.0, "", "reach of the halo beyond the outline, fraction of the radius")
     rim: Dist = number(0.0, 0.0, 3.0, "", "extra stain density along a plaque's outline (a thin darker rim)")

@@ -171,6 +171,10 @@ class PlaqueLook(_Concrete):
                          "of the noise (crenellated, cauliflower-like edges)")
     centre_residual: float = Field(0.02, description="share of the clearing a plaque's centre lacks (a paler, "
                                    "translucent centre)")
+    residual_mottle: float = Field(0.03, description="sd of the share of stain left inside a plaque, in patches of "
+                                   "about a tenth of a millimetre")
+    residual_tint: float = Field(0.0, description="share of the stain left inside a plaque in the colour of what a "
+                                 "lysed well keeps")
     halo: float = Field(0.0, description="clearing of the soft halo just outside a plaque's outline")
     halo_width: float = Field(0.5, description="reach of the halo beyond the outline, share of the radius")
     rim: float = Field(0.0, description="extra stain density on a thin band along a plaque's outline (a darker rim)")
