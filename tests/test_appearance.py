@@ -210,6 +210,28 @@ def test_lysed_density_sets_how_pale_a_lysed_well_is(base_scene):
     assert fine_detail(grainy) > 1.25 * fine_detail(smooth)  # 1.36 measured (strands and drying detail remain)
 
 
+def test_a_lace_wells_layer_keeps_the_lysed_density_in_the_lysed_colour(base_scene):
+    """Between a lace well's plaques the layer is damaged: at every texel it keeps ``stain.lysed_density`` of the
+    intact layer's density, in the colour of what a lysed well keeps (no film: the same unevenness)."""
+    scene, well = base_scene
+    pale = {"lysed_paleness": 1.0, "lysed_hue_deg": 230.0, "lysed_saturation": 0.4, "lysed_density": 0.3}
+    scene = scene.model_copy(update={"plaques": (), "stain": scene.stain.model_copy(update=pale)})
+    laced = scene.model_copy(update={"wells": tuple(
+        w.model_copy(update={"lysed": w.id == well.id, "lace": w.id == well.id}) for w in scene.wells)})
+    table = appearance.stain_table(scene, scene_textures(scene))[0]
+    t = table["translucency"]
+    row, col = (int(c * TEXELS_PER_MM) for c in well.center_mm[::-1])
+    window = np.s_[row - 40: row + 40, col - 40: col + 40]
+
+    def absorbance(variant) -> np.ndarray:
+        return -np.log((appearance.floor_transmittance(variant, TEXELS_PER_MM)[window] - t) / (1.0 - t))
+
+    layer = np.array([table["absorbance_r"], table["absorbance_g"], table["absorbance_b"]])
+    lysed = np.array([table["lysed_absorbance_r"], table["lysed_absorbance_g"], table["lysed_absorbance_b"]])
+    np.testing.assert_allclose(absorbance(laced) / absorbance(scene), np.broadcast_to(0.3 * lysed / layer, (80, 80, 3)),
+                               rtol=2e-3)
+
+
 def _texel_places(shape: tuple[int, ...], well) -> tuple[np.ndarray, np.ndarray]:
     """Each floor texel's distance from ``well``'s centre (mm) and its direction (radians, plate x axis 0)."""
     rows, cols = np.indices(shape[:2])

@@ -47,11 +47,11 @@ def test_presets_load_and_sample_json_roundtrip(preset):
 # sha256 of sample_scene(load_config(preset), 3).model_dump_json(): sampling must not change without intent (a change
 # here changes every dataset rendered from these presets). Update only for a deliberate change of the sampling.
 SCENE_SHA256_SEED3 = {
-    "diverse": "6c41911b3263420f403789d6d1ed63ea1c49bc8117e90ac8117d4d436064a73e",
-    "high": "499868833bdf31763f7caf39b84b038d5d47d3a4900342c7692d7a838c5ef65d",
-    "lightbox12": "fe52c7931d18716aaaa60d538dab5ae49d1db1b94e00a22048d54d41d3b66ff9",
-    "low": "accff859e63de7b64374c7ac72682879fb5f4ad123495969131fab6985286aad",
-    "medium": "4f85849e6a4c704f7679479b282036781f1a9090582af9793333a82878b1abd1",
+    "diverse": "9b62b33307a5a97486fac7c79c84aab17e260570985b8b37c60bc55dc5e33c42",
+    "high": "868b86da54633c6c3da573b71f60ecb13d9064652215a72707d2b9d16e6d0106",
+    "lightbox12": "f245ffd737f11157b949df3342b494d72e6b023ec22043da2d11e6297c9aec5f",
+    "low": "ade69d1d61711a8b2bb299676fafdf34283e1b44237943e2be0efb12788114d2",
+    "medium": "0089be718c566433de51ffa50d8b60f51ce574b38cbca26f2fba3300b07bcd6e",
 }
 
 
@@ -102,7 +102,7 @@ def test_dilution_series_across_columns():
 
 def test_lysed_wells_hold_no_plaques_and_emptied_wells_no_cells():
     overrides = {"plaques.negative_plate": 0.0, "plaques.top_count": 5000, "plaques.lysis_count": 1000,
-                 "wells.emptied": 0.3}
+                 "wells.emptied": 0.3, "plaques.lysed_lace": 0.0}
     config = load_config("high", overrides=overrides)
     n_lysed = n_emptied = 0
     for seed in range(5):
@@ -115,6 +115,29 @@ def test_lysed_wells_hold_no_plaques_and_emptied_wells_no_cells():
         assert not {p.well for p in scene.plaques} & (lysed | emptied)
         n_lysed, n_emptied = n_lysed + len(lysed), n_emptied + len(emptied)
     assert n_lysed > 5 and n_emptied > 5
+
+
+def test_lace_draws_lysed_wells_as_merged_plaques_after_every_other_draw():
+    """``plaques.lysed_lace`` 1: every lysed well becomes a lace, as many of the plate's plaques, spread over it, as
+    cover ``lace_coverage`` of its area (their discs' sum), numbered after all others; from a stream of its own, so
+    the wells and every other plaque stay as drawn without it. A lace well stays uncountable."""
+    overrides = {"plaques.negative_plate": 0.0, "plaques.top_count": 5000, "plaques.lysis_count": 1000,
+                 "plaques.lace_coverage": 2.0, "wells.emptied": 0.0}
+    for seed in range(3):
+        film, lace = (sample_scene(load_config("high", overrides=overrides | {"plaques.lysed_lace": chance}), seed)
+                      for chance in (0.0, 1.0))
+        lysed = {w.id for w in film.wells if w.lysed}
+        assert lysed and {w.id for w in lace.wells if w.lace} == lysed
+        assert not any(w.countable for w in lace.wells if w.lace)
+        assert [w.model_copy(update={"lace": False}) for w in lace.wells] == list(film.wells)
+        assert lace.plaques[: len(film.plaques)] == film.plaques
+        added = lace.plaques[len(film.plaques):]
+        assert [p.id for p in added] == list(range(len(film.plaques) + 1, len(lace.plaques) + 1))
+        radius = lace.plate.well_radius_mm
+        centres = {w.id: np.array(w.center_mm) for w in lace.wells}
+        assert all(np.hypot(*(np.array(p.center_mm) - centres[p.well])) <= radius for p in added)
+        coverage = [sum(p.radius_mm**2 for p in added if p.well == well_id) / radius**2 for well_id in lysed]
+        assert np.mean(coverage) == pytest.approx(2.0, rel=0.15)  # 112 to 522 plaques a well, lognormal radii
 
 
 def test_from_below_mirrors_the_image_grid():

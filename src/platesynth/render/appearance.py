@@ -152,6 +152,7 @@ WELL_DTYPE = np.dtype(
         ("emptied", np.float64),  # 0 or 1
         ("noise_x", np.float64),  # the well's shift into the periodic noise tiles (mm)
         ("noise_y", np.float64),
+        ("lace", np.float64),  # 0 or 1: a lysed well drawn as a lace of plaques, its layer in the lysed colour
     ]
 )
 """One row per well, in plate row-major order (:func:`well_table`)."""
@@ -219,7 +220,8 @@ def well_table(wells: list[Well], top_centres: np.ndarray, foot_centres: np.ndar
         table[i] = (
             w.id, *w.center_mm, *top_centres[i], *foot_centres[i], *tints[i], *sheens[i], w.stain.density,
             w.stain.centre_gradient, math.cos(angle), math.sin(angle), *w.stain.centre_offset_mm,
-            w.stain.drying_detail, float(w.lysed), float(w.emptied), *well_offsets[i],
+            w.stain.drying_detail, float(w.lysed_film), float(w.emptied), *well_offsets[i],
+            float(w.lace),
         )
     return table
 
@@ -233,8 +235,8 @@ def wall_tints(scene: Scene, wells: list[Well], stain: np.ndarray) -> np.ndarray
     if share > 0.0:
         for i, well in enumerate(wells):
             if not well.emptied:
-                density = well.stain.density * (stain["lysed_density"] if well.lysed else 1.0)
-                tints[i] = np.power(stain_transmittance(density, stain, float(well.lysed)), share)
+                density = well.stain.density * (stain["lysed_density"] if well.lysed_film else 1.0)
+                tints[i] = np.power(stain_transmittance(density, stain, float(well.lysed_film)), share)
     return tints
 
 
@@ -327,7 +329,8 @@ def well_at(u, v, a1x, a1y, pitch, rows, cols):
 def monolayer_density(u, v, du, dv, dist, radius, well, stain, low_grid, fibre_grid, fine_tile, mottle_tile):
     """Density of the intact (or lysed) monolayer of ``well`` at plate point ``(u, v)``, ``(du, dv)`` from the
     well's centre at distance ``dist``, before plaques and marks; and the share of it that takes the colour of what a
-    lysed well keeps (the well's flag, 0 or 1, less the clumps of intact cells in a lysed well)."""
+    lysed well keeps (the well's flag, 0 or 1, less the clumps of intact cells in a lysed well; 1 in a lace well,
+    whose layer between its plaques is damaged: it keeps ``stain.lysed_density`` of its density)."""
     low_cell = stain.unevenness_cell_mm
     density = well.density * (1.0 + stain.unevenness * grid_sample(low_grid, u / low_cell, v / low_cell))
     spread = CENTRE_SPREAD * radius
@@ -388,7 +391,9 @@ def monolayer_density(u, v, du, dv, dist, radius, well, stain, low_grid, fibre_g
             clump = clip01((lump - stain.lysed_clump_level) / LYSED_CLUMP_EDGE)
             if clump > 0.0:
                 return max(density, clump * intact), 1.0 - clump
-    return density, well.lysed
+    if well.lace > 0.5:  # the damaged layer between a lace well's plaques
+        density *= stain.lysed_density
+    return density, well.lysed + well.lace
 
 
 @njit(cache=True, nogil=True, inline="always")

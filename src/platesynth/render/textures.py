@@ -91,7 +91,7 @@ def scene_textures(scene: Scene) -> SceneTextures:
         return int(plate.width_mm / cell_mm) + 3, int(plate.length_mm / cell_mm) + 3
 
     fibre_grid = None
-    if any(w.lysed for w in scene.wells):
+    if any(w.lysed_film for w in scene.wells):
         fibre_grid = noise_grid(scene_rng(seed, "fibres"), plate_grid(FIBRE_CELL_MM), 2.0)
     return SceneTextures(
         well_offsets=scene_rng(seed, "well_offsets").uniform(0.0, WELL_OFFSET_RANGE_MM, (len(scene.wells), 2)),

@@ -194,6 +194,11 @@ class PlaquesConfig(Section):
     reverse_series: float = probability(0.0, "chance the series runs from the last column to the first")
     lysis_count: Dist = number([90, 130], 1, 100000, "plaques",
                                "mean count above which a well is lysed (a person calls it uncountable)")
+    lysed_lace: float = probability(
+        0.0, "chance a lysed well is drawn as a lace of merged plaques over its intact layer, each in the plaque "
+        "masks (a person still calls it uncountable), instead of a pale film")
+    lace_coverage: Dist = number([1.5, 2.5], 0.2, 5.0, "", "sum of the discs of a lace well's plaques, share of the "
+                                 "well's area (2: about a seventh of the layer left, a network between merged holes)")
     radius_mm: Dist = number({"loguniform": [0.35, 1.5]}, 0.05, 10.0, "mm", "median plaque radius of the plate")
     radius_spread: Dist = number([0.2, 0.45], 0.0, 2.0, "", "sd of log radius within the plate")
     irregularity: Dist = number([0.02, 0.08], 0.0, 0.5, "", "amplitude of the outline's Fourier harmonics")

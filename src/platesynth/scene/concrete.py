@@ -137,6 +137,8 @@ class Well(_Concrete):
     center_mm: Vec2 = Field(description="centre in plate coordinates, mm")
     emptied: bool = Field(description="holds no cells (clear plastic)")
     lysed: bool = Field(description="confluent lysis: the layer is mostly gone, no countable plaques")
+    lace: bool = Field(False, description="a lysed well drawn as a lace of merged plaques over its intact layer "
+                       "(in the plaque masks) instead of a pale film")
     expected_plaques: float = Field(description="mean plaque count of the dilution for this well")
     stain: WellStain
 
@@ -144,6 +146,11 @@ class Well(_Concrete):
     def countable(self) -> bool:
         """Whether a person would count this well's plaques (not a lysed or emptied well)."""
         return not (self.lysed or self.emptied)
+
+    @property
+    def lysed_film(self) -> bool:
+        """Whether the layer is drawn as what a lysed well keeps (a pale film), not intact: lysed, and no lace."""
+        return self.lysed and not self.lace
 
 
 class Plaque(_Concrete):

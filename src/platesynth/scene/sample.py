@@ -57,6 +57,8 @@ MIN_PLAQUE_RADIUS_MM = 0.05
 """The smallest plaque (the lower end of ``plaques.radius_mm``)."""
 PLACEMENT_ATTEMPTS = 30
 """Tries to place a plaque within ``plaques.max_overlap`` of the others before it is left out."""
+LACE_MAX_PLAQUES = 3000
+"""The most plaques a lace well (``plaques.lysed_lace``) holds, whatever their size."""
 LIGHT_PANEL_MM = (215.0, 300.0)
 """The light box's glowing panel (about A4), upright; it grows where the margins ask for more."""
 PIPETTE_ANGLE_SD = 0.08
@@ -355,6 +357,10 @@ def sample_scene(config: SceneConfig, seed: int) -> Scene:
                                      "rim_mottle_patches": c.stain.draw("rim_mottle_patches",
                                                                         scene_rng(seed, "rim_patches"))})
     plaques = _shrink_crowded(plaques, c.plaques.draw("max_coverage", rng), plate.well_radius_mm)
+    wells, lace_plaques = _lace_lysed_wells(scene_rng(seed, "lysed_lace"), c.plaques, wells, len(plaques), radius,
+                                            median_radius, radius_spread, max_radius, harmonic_scale, softness,
+                                            clearness)
+    plaques += lace_plaques
     return Scene(
         seed=texture_seed,
         plate=plate,
@@ -443,6 +449,35 @@ def _sample_plaques(
             )
         )
     return out
+
+
+def _lace_lysed_wells(
+    rng: np.random.Generator,
+    section: PlaquesConfig,
+    wells: list[Well],
+    first_index: int,
+    well_radius: float,
+    median_radius: float,
+    radius_spread: float,
+    max_radius: float,
+    harmonic_scale: np.ndarray,
+    softness: float,
+    clearness: float,
+) -> tuple[list[Well], list[Plaque]]:
+    """Turn each lysed well, with chance ``plaques.lysed_lace``, into a lace: its layer intact, cleared by as many of
+    the plate's plaques, spread evenly, as cover ``plaques.lace_coverage`` of its area (their discs' sum), numbered
+    after all others (``first_index``). Drawn from ``rng``, a stream of their own, after every other draw."""
+    mean_square_radius = median_radius**2 * math.exp(2.0 * radius_spread**2)  # of the lognormal radii
+    laced, plaques = [], []
+    for well in wells:
+        if well.lysed and section.draw("lysed_lace", rng):
+            count = min(LACE_MAX_PLAQUES, round(section.draw("lace_coverage", rng) * well_radius**2 / mean_square_radius))
+            plaques += _sample_plaques(rng, section, count, well.id, np.array(well.center_mm), well_radius,
+                                       first_index + len(plaques), median_radius, radius_spread, max_radius,
+                                       harmonic_scale, softness, clearness, 0.0, 1.0)
+            well = well.model_copy(update={"lace": True})
+        laced.append(well)
+    return laced, plaques
 
 
 def _shrink_crowded(plaques: list[Plaque], max_coverage: float, well_radius: float) -> list[Plaque]:

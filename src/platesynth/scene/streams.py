@@ -17,7 +17,8 @@ STREAMS = ("well_offsets", "unevenness", "fibres", "desk", "fine", "residual", "
            "top_edge_blur", "noise_grain", "wall_slant", "wall_glints", "wall_glint_harmonics",
            "scratch_clearing", "scratch_softness", "scratch_haze",
            "rim_patches", "label_place", "crescent_veil",
-           "wall_lines", "wall_highlights", "plaque_residual_mottle", "plaque_residual_tint")
+           "wall_lines", "wall_highlights", "plaque_residual_mottle", "plaque_residual_tint",
+           "lysed_lace")
 """The random streams of a scene's seed, in the order they are spawned (append new ones at the end)."""
 
 
