@@ -292,7 +292,7 @@ def _scene_without_post():
 
     scene = sample_scene(load_config("high", overrides={"plaques.negative_plate": 1.0, "lighting.exposure_ev": 0.0}), 2)
     switches = {name: effect.model_copy(update={"enabled": False}) for name, effect in scene.post if isinstance(effect, Effect)}
-    switches |= {"sharpen_luma": 0.0, "noise_grain_px": 0.0}
+    switches |= {"sharpen_luma": 0.0, "noise_grain_px": 0.0, "black_level": 0.0}
     return scene, scene.model_copy(update={"post": scene.post.model_copy(update=switches),
                                            "camera": scene.camera.model_copy(update={"defocus_px": 0.0})})
 
@@ -312,6 +312,7 @@ def test_the_compositor_post_processing_is_the_raster_renderers(pool):
     effects = {"brightness": 0.1, "clarity": 0.4, "motion_blur": 6.0, "chromatic_aberration": 3.0, "bloom": 0.4, "sharpen": 1.8}
     variants = {name: {name: Effect(enabled=True, strength=strength)} for name, strength in effects.items()}
     variants["sharpen_luma"] = {"sharpen": Effect(enabled=True, strength=1.8), "sharpen_luma": 1.0}
+    variants["black_level"] = {"black_level": 0.06}
     colour_of_change = {}
     for name, update in variants.items():
         post = bare.post.model_copy(update=update)

@@ -242,6 +242,9 @@ def test_post_processing_effects_change_the_image_as_described():
     glowing = pp.bloom(dark, 0.5)
     assert glowing[100, 106].mean() > 0.01 and glowing[100, 130].mean() < glowing[100, 106].mean()
     assert pp.shadows(np.ones_like(image), 0.3, np.random.default_rng(2)).min() < 1.0
+    levels = np.array([0.0, 0.02, 0.04, 0.52, 1.0], dtype=np.float32)
+    # the black point 0.04: darker levels clip to 0 when stored, the rest stretched, white kept
+    assert pp.to_uint8(pp.black_level(levels, 0.04)).tolist() == [0, 0, 0, 128, 255]
     u8 = pp.to_uint8(image)
     assert pp.jpeg_roundtrip(u8, 0.5).shape == u8.shape and not np.array_equal(pp.jpeg_roundtrip(u8, 0.5), u8)
 

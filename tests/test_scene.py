@@ -47,11 +47,11 @@ def test_presets_load_and_sample_json_roundtrip(preset):
 # sha256 of sample_scene(load_config(preset), 3).model_dump_json(): sampling must not change without intent (a change
 # here changes every dataset rendered from these presets). Update only for a deliberate change of the sampling.
 SCENE_SHA256_SEED3 = {
-    "diverse": "9b62b33307a5a97486fac7c79c84aab17e260570985b8b37c60bc55dc5e33c42",
-    "high": "868b86da54633c6c3da573b71f60ecb13d9064652215a72707d2b9d16e6d0106",
-    "lightbox12": "f245ffd737f11157b949df3342b494d72e6b023ec22043da2d11e6297c9aec5f",
-    "low": "ade69d1d61711a8b2bb299676fafdf34283e1b44237943e2be0efb12788114d2",
-    "medium": "0089be718c566433de51ffa50d8b60f51ce574b38cbca26f2fba3300b07bcd6e",
+    "diverse": "5be7cc6f8a0b5e8145b7ec83a935767abf8c3c16fa2bb840191c82e7d9087af2",
+    "high": "bf536227801df9e427c35d22cf07740bb1070015eb1f6129d5c3021761bd294e",
+    "lightbox12": "3fc67ac3cfb530782a6b56b00fe31e3b9782a138137808c678cad64007802f9a",
+    "low": "e20dfaa44fd00672285e2c5a5d872bd61025ced21d0ba985d2f8e9b5b5ac8cdf",
+    "medium": "88bce3fb3146d4a779efe73478b769bfae2dabe81529561a747c694b79e779ff",
 }
 
 
@@ -426,6 +426,7 @@ def test_lysed_paleness_draws_the_remnants_colour_from_the_pale_palette_and_noth
     ("post", {"post.sharpen_luma": [0.5, 1.0]}, {"post.sharpen_luma": 0.0}),
     ("plate_look", {"plate.top_edge_blur_mm": [0.2, 0.6]}, {"plate.top_edge_blur_mm": 0.0}),
     ("post", {"post.noise_grain_px": [0.8, 1.4]}, {"post.noise_grain_px": 0.0}),
+    ("post", {"post.black_level": [0.02, 0.05]}, {"post.black_level": 0.0}),
     ("plate_look", {"plate.wall_slant": [0.05, 0.15], "plate.wall_glints": [0.05, 0.2]},
      {"plate.wall_slant": 0.0, "plate.wall_glints": 0.0}),
     ("artifacts", {"artifacts.scratch_clearing": [0.8, 0.9], "artifacts.scratch_softness_mm": [0.05, 0.15],

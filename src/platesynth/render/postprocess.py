@@ -136,6 +136,12 @@ def sensor_noise(image: np.ndarray, sd_levels: float, rng: np.random.Generator, 
     return out
 
 
+def black_level(image: np.ndarray, level: float) -> np.ndarray:
+    """A tone curve's black point: ``level`` maps to 0 and 1 stays 1, linearly between (darker levels go below 0 and
+    clip when the image is stored)."""
+    return (image - np.float32(level)) / np.float32(1.0 - level)
+
+
 def to_uint8(image: np.ndarray) -> np.ndarray:
     """Clip to [0, 1] and quantise to uint8."""
     return (np.clip(image, 0.0, 1.0) * 255.0 + 0.5).astype(np.uint8)
@@ -179,4 +185,6 @@ def apply_post(image: np.ndarray, post: PostProcessing, rng: np.random.Generator
         image = sharpen(image, post.sharpen.strength, sigma=max(0.5, px_scale), luma=post.sharpen_luma)
     if post.noise.enabled:
         image = sensor_noise(image, post.noise.strength, rng, grain_px=post.noise_grain_px * px_scale)
+    if post.black_level > 0.0:
+        image = black_level(image, post.black_level)
     return image

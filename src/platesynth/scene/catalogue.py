@@ -314,6 +314,9 @@ class PostConfig(Section):
     noise_strength: Dist = number([1.0, 2.5], 0.0, 30.0, "levels", "noise sd in 8-bit levels")
     noise_grain_px: Dist = number(0.0, 0.0, 3.0, "px", "sd of the blur that clumps the noise into grains, px at 1024 px "
                                   "width, its sd kept (a phone's demosaicing and denoising; 0: each pixel its own)")
+    black_level: Dist = number(0.0, 0.0, 0.2, "", "display level (0..1) a phone's tone curve maps to black, after the "
+                               "noise: darker levels clip to 0 and the rest is stretched to keep white (the photos' "
+                               "saturated wells have their green at 0)")
     jpeg: float = probability(0.9, "chance of JPEG compression")
     jpeg_strength: Dist = number([0.05, 0.2], 0.0, 0.9, "", "1 - JPEG quality/100")
 

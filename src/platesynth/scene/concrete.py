@@ -298,6 +298,8 @@ class PostProcessing(_Concrete):
     sharpen_luma: float = Field(default=0.0, description="share of the sharpening done on the luminance alone, 0..1")
     noise: Effect = Field(default=Effect(), description="sensor noise, standard deviation in 8-bit levels")
     noise_grain_px: float = Field(default=0.0, description="sd of the blur that clumps the noise, px at 1024 px width")
+    black_level: float = Field(default=0.0, description="display level the tone curve maps to black, 0..1 (the rest "
+                               "stretched to keep white)")
     jpeg: Effect = Field(default=Effect(), description="JPEG compression, strength = 1 - quality/100")
 
 

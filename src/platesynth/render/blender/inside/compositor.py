@@ -3,7 +3,7 @@
 The image chain follows the raster renderer's order: in linear light exposure and the light's colour
 (its colour temperature, normalised to its strongest channel), vignetting and glare; then the sRGB encoding and,
 on the encoded image, the optical blur and the enabled post-processing effects (brightness, white balance, clarity, motion blur, shadows, chromatic aberration, bloom, sharpening, sensor
-noise). Lengths given for 1024-pixel-wide images are scaled by ``px_scale``. Each effect's strength is a
+noise, the tone curve's black point). Lengths given for 1024-pixel-wide images are scaled by ``px_scale``. Each effect's strength is a
 named node input, so the .blend shows and lets one change them. JPEG compression is not a compositor effect:
 the host applies it to the written image.
 """
@@ -259,6 +259,11 @@ def _post(chain: _Chain, post: Mapping[str, Any], seed: int, px_scale: float, wi
             gain = noise_grain_gain(grain)
             noise = chain.mix("MULTIPLY", (gain, gain, gain, 1.0), a=chain.blur(noise, grain))
         chain.image = chain.mix("ADD", noise)
+    if (level := float(post["black_level"])) > 0.0:  # the tone curve's black point (below 0 clips when written)
+        black = chain.value("Black Level", level)
+        shifted = chain.mix("SUBTRACT", chain.gray(black))
+        chain.image = chain.mix("MULTIPLY", chain.gray(chain.math("DIVIDE", 1.0, chain.math("SUBTRACT", 1.0, black))),
+                                a=shifted)
 
 
 def mask_tree(directory: str) -> bpy.types.NodeTree:
