@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import colorsys
 import math
+from typing import NamedTuple
 
 import numpy as np
 
@@ -256,6 +257,7 @@ def sample_scene(config: SceneConfig, seed: int) -> Scene:
     debris_rate = c.artifacts.draw("debris", rng)
     radius = plate.well_radius_mm
     harmonic_scale = irregularity / np.array([float(k) ** harmonic_decay for k in range(2, N_HARMONICS + 2)])
+    shared = _PlaqueDraws(median_radius, radius_spread, max_radius, harmonic_scale, softness, clearness)
     a = c.artifacts
 
     for plate_row in range(plate.rows):
@@ -290,10 +292,7 @@ def sample_scene(config: SceneConfig, seed: int) -> Scene:
             if emptied:
                 continue
             plaques.extend(
-                _sample_plaques(
-                    rng, c.plaques, count, well_id, center, radius, len(plaques), median_radius, radius_spread,
-                    max_radius, harmonic_scale, softness, clearness, edge_bias, max_overlap,
-                )
+                _sample_plaques(rng, c.plaques, count, well_id, center, radius, len(plaques), shared, edge_bias, max_overlap)
             )
             if a.draw("pipette_scratch", rng):
                 scratches.append(_pipette_scratch(rng, pipette_pose, a, well_id, center, radius, scratch_length,
@@ -358,9 +357,7 @@ def sample_scene(config: SceneConfig, seed: int) -> Scene:
                                      "rim_mottle_patches": c.stain.draw("rim_mottle_patches",
                                                                         scene_rng(seed, "rim_patches"))})
     plaques = _shrink_crowded(plaques, c.plaques.draw("max_coverage", rng), plate.well_radius_mm)
-    wells, lace_plaques = _lace_lysed_wells(scene_rng(seed, "lysed_lace"), c.plaques, wells, len(plaques), radius,
-                                            median_radius, radius_spread, max_radius, harmonic_scale, softness,
-                                            clearness)
+    wells, lace_plaques = _lace_lysed_wells(scene_rng(seed, "lysed_lace"), c.plaques, wells, len(plaques), radius, shared)
     plaques += lace_plaques
     return Scene(
         seed=texture_seed,
@@ -403,6 +400,18 @@ def _in_disc(rng: np.random.Generator, radius: float, edge_bias: float = 0.0) ->
     return np.array([rho * math.cos(angle), rho * math.sin(angle)])
 
 
+class _PlaqueDraws(NamedTuple):
+    """The plate's draws that all its plaques share: the median radius and the sd of the log radii, the largest radius
+    (share of the well's), the outline harmonics' amplitudes, the softness and the clearness."""
+
+    median_radius: float
+    radius_spread: float
+    max_radius: float
+    harmonic_scale: np.ndarray
+    softness: float
+    clearness: float
+
+
 def _sample_plaques(
     rng: np.random.Generator,
     section: PlaquesConfig,
@@ -411,19 +420,14 @@ def _sample_plaques(
     center: np.ndarray,
     well_radius: float,
     first_index: int,
-    median_radius: float,
-    radius_spread: float,
-    max_radius: float,
-    harmonic_scale: np.ndarray,
-    softness: float,
-    clearness: float,
+    shared: _PlaqueDraws,
     edge_bias: float,
     max_overlap: float,
 ) -> list[Plaque]:
     radii = np.clip(
-        median_radius * np.array([math.exp(z) for z in rng.normal(0, radius_spread, count)]),
+        shared.median_radius * np.array([math.exp(z) for z in rng.normal(0, shared.radius_spread, count)]),
         MIN_PLAQUE_RADIUS_MM,
-        max_radius * well_radius,
+        shared.max_radius * well_radius,
     )
     placed: list[tuple[np.ndarray, float]] = []
     out: list[Plaque] = []
@@ -437,7 +441,7 @@ def _sample_plaques(
         else:
             continue
         placed.append((offset, float(radius)))
-        coefficients = rng.normal(0.0, 1.0, (len(harmonic_scale), 2)) * harmonic_scale[:, None]
+        coefficients = rng.normal(0.0, 1.0, (len(shared.harmonic_scale), 2)) * shared.harmonic_scale[:, None]
         out.append(
             Plaque(
                 id=first_index + len(out) + 1,
@@ -445,8 +449,8 @@ def _sample_plaques(
                 center_mm=_tuple2(center + offset),
                 radius_mm=round(float(radius), 4),
                 fourier=tuple(_tuple2(pair) for pair in coefficients),
-                softness=softness * section.draw("softness_factor", rng),
-                clearness=min(1.0, clearness * section.draw("clearness_factor", rng)),
+                softness=shared.softness * section.draw("softness_factor", rng),
+                clearness=min(1.0, shared.clearness * section.draw("clearness_factor", rng)),
             )
         )
     return out
@@ -458,24 +462,19 @@ def _lace_lysed_wells(
     wells: list[Well],
     first_index: int,
     well_radius: float,
-    median_radius: float,
-    radius_spread: float,
-    max_radius: float,
-    harmonic_scale: np.ndarray,
-    softness: float,
-    clearness: float,
+    shared: _PlaqueDraws,
 ) -> tuple[list[Well], list[Plaque]]:
-    """Turn each lysed well, with chance ``plaques.lysed_lace``, into a lace: its layer intact, cleared by as many of
-    the plate's plaques, spread evenly, as cover ``plaques.lace_coverage`` of its area (their discs' sum), numbered
-    after all others (``first_index``). Drawn from ``rng``, a stream of their own, after every other draw."""
-    mean_square_radius = median_radius**2 * math.exp(2.0 * radius_spread**2)  # of the lognormal radii
+    """Turn each lysed well, with chance ``plaques.lysed_lace``, into a lace: as many plaques like the plate's others
+    (``shared``), spread evenly, as cover ``plaques.lace_coverage`` of its area (their discs' sum), numbered after all
+    others (``first_index``), over a layer the renderers draw damaged (``Well.lace``). Drawn from ``rng``, a stream
+    of their own, after every other draw."""
+    mean_square_radius = shared.median_radius**2 * math.exp(2.0 * shared.radius_spread**2)  # of the lognormal radii
     laced, plaques = [], []
     for well in wells:
         if well.lysed and section.draw("lysed_lace", rng):
             count = min(LACE_MAX_PLAQUES, round(section.draw("lace_coverage", rng) * well_radius**2 / mean_square_radius))
             plaques += _sample_plaques(rng, section, count, well.id, np.array(well.center_mm), well_radius,
-                                       first_index + len(plaques), median_radius, radius_spread, max_radius,
-                                       harmonic_scale, softness, clearness, 0.0, 1.0)
+                                       first_index + len(plaques), shared, 0.0, 1.0)
             well = well.model_copy(update={"lace": True})
         laced.append(well)
     return laced, plaques
