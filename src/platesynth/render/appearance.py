@@ -228,15 +228,15 @@ def well_table(wells: list[Well], top_centres: np.ndarray, foot_centres: np.ndar
 
 def wall_tints(scene: Scene, wells: list[Well], stain: np.ndarray) -> np.ndarray:
     """Linear RGB factors ``(n, 3)`` on the band over each wall of ``wells``: the transmittance of its well's layer
-    at the well's density (a lysed well's times ``stain.lysed_density``, in the colour of what it keeps; none in an
-    emptied well), raised to ``plate_look.wall_stain``. ``stain`` is the :func:`stain_table` row."""
+    at the well's density (a lysed well's, film or lace, times ``stain.lysed_density``, in the colour of what it
+    keeps; none in an emptied well), raised to ``plate_look.wall_stain``. ``stain`` is the :func:`stain_table` row."""
     share = scene.plate_look.wall_stain
     tints = np.ones((len(wells), 3))
     if share > 0.0:
         for i, well in enumerate(wells):
             if not well.emptied:
-                density = well.stain.density * (stain["lysed_density"] if well.lysed_film else 1.0)
-                tints[i] = np.power(stain_transmittance(density, stain, float(well.lysed_film)), share)
+                density = well.stain.density * (stain["lysed_density"] if well.lysed else 1.0)
+                tints[i] = np.power(stain_transmittance(density, stain, float(well.lysed)), share)
     return tints
 
 

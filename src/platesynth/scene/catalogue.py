@@ -195,8 +195,8 @@ class PlaquesConfig(Section):
     lysis_count: Dist = number([90, 130], 1, 100000, "plaques",
                                "mean count above which a well is lysed (a person calls it uncountable)")
     lysed_lace: float = probability(
-        0.0, "chance a lysed well is drawn as a lace of merged plaques over its intact layer, each in the plaque "
-        "masks (a person still calls it uncountable), instead of a pale film")
+        0.0, "chance a lysed well is drawn as a lace of merged plaques, each in the plaque masks, over its damaged "
+        "layer (stain.lysed_density, in the lysed colour; a person still calls it uncountable), instead of a pale film")
     lace_coverage: Dist = number([1.5, 2.5], 0.2, 5.0, "", "sum of the discs of a lace well's plaques, share of the "
                                  "well's area (2: about a seventh of the layer left, a network between merged holes)")
     radius_mm: Dist = number({"loguniform": [0.35, 1.5]}, 0.05, 10.0, "mm", "median plaque radius of the plate")

@@ -137,8 +137,8 @@ class Well(_Concrete):
     center_mm: Vec2 = Field(description="centre in plate coordinates, mm")
     emptied: bool = Field(description="holds no cells (clear plastic)")
     lysed: bool = Field(description="confluent lysis: the layer is mostly gone, no countable plaques")
-    lace: bool = Field(False, description="a lysed well drawn as a lace of merged plaques over its intact layer "
-                       "(in the plaque masks) instead of a pale film")
+    lace: bool = Field(False, description="a lysed well drawn as a lace of merged plaques (in the plaque masks) over "
+                       "its damaged layer instead of a pale film")
     expected_plaques: float = Field(description="mean plaque count of the dilution for this well")
     stain: WellStain
 
@@ -149,7 +149,7 @@ class Well(_Concrete):
 
     @property
     def lysed_film(self) -> bool:
-        """Whether the layer is drawn as what a lysed well keeps (a pale film), not intact: lysed, and no lace."""
+        """Whether the layer is drawn as the pale film a lysed well keeps: lysed, and not a lace."""
         return self.lysed and not self.lace
 
 
