@@ -41,8 +41,10 @@ from platesynth.scene.streams import scene_rng
 
 STAIN_DRAWN_LAST = ("rim_mottle", "rim_mottle_mm", "lysed_density", "lysed_residue", "lysed_strands", "lysed_grain")
 """Stain parameters drawn after all others (added later; drawing them earlier would change every scene)."""
-PLAQUE_LOOK_OWN_STREAM = ("lumps", "residual_mottle", "residual_tint")
-"""Fields of the plaque look drawn from a random stream of their own (added later: every other draw stays)."""
+PLAQUE_LOOK_OWN_STREAM = {"lumps": "plaque_lumps", "residual_mottle": "plaque_residual_mottle",
+                          "residual_tint": "plaque_residual_tint"}
+"""Fields of the plaque look drawn from a random stream of their own, and its name (added later: every other draw
+stays)."""
 SBS_LENGTH_MM, SBS_WIDTH_MM = 127.76, 85.48
 """The SBS footprint of every plate format."""
 # rows, cols, pitch, bottom radius, wall thickness, well depth (mm); SBS footprint, wells centred on the plate
@@ -345,9 +347,8 @@ def sample_scene(config: SceneConfig, seed: int) -> Scene:
     # the look of plaques and of the rim's mottle are drawn last, so that adding them left every earlier draw as it was
     plaque_look = PlaqueLook(**{name: c.plaques.draw(name, rng) for name in PlaqueLook.model_fields
                                 if name not in PLAQUE_LOOK_OWN_STREAM},
-                             lumps=c.plaques.draw("lumps", scene_rng(seed, "plaque_lumps")),
-                             residual_mottle=c.plaques.draw("residual_mottle", scene_rng(seed, "plaque_residual_mottle")),
-                             residual_tint=c.plaques.draw("residual_tint", scene_rng(seed, "plaque_residual_tint")))
+                             **{name: c.plaques.draw(name, scene_rng(seed, stream))
+                                for name, stream in PLAQUE_LOOK_OWN_STREAM.items()})
     stain = stain.model_copy(update={name: c.stain.draw(name, rng) for name in STAIN_DRAWN_LAST})
     rim_band = scene_rng(seed, "rim_band")  # drawn beside the main order: scenes drawn before stay
     side_angle = round(float(rim_band.uniform(0.0, 360.0)), 2)  # first: a fixed setting below draws nothing
