@@ -14,7 +14,6 @@ Run: ``python benchmarks/resolvable_tuning.py --models runs/m-s1 --cells 3 --out
 from __future__ import annotations
 
 import argparse
-import json
 import shutil
 from pathlib import Path
 
@@ -31,29 +30,14 @@ def main(argv: list[str] | None = None) -> None:
 
     import torch
 
-    from platesynth.data.layout import list_items
     from platesynth.io import write_json
     from platesynth.segment.model import CONFIG_NAME, load_model
-    from platesynth.segment.train import (
-        TrainConfig,
-        choose_thresholds,
-        split_sources,
-        threshold_scores,
-        validation_at,
-        validation_items,
-    )
+    from platesynth.segment.train import choose_thresholds, threshold_scores, tuning_items, validation_at
 
     torch.set_num_threads(args.threads)
     for folder in (Path(f) for f in args.models.split(",")):
         model = load_model(folder)
-        if (folder / "train.json").is_file():
-            recipe = json.loads((folder / "train.json").read_text())["train"]
-        else:
-            training = model.config.training
-            recipe = {**training["recipe"], "data": [s["dir"] for s in training["sources"]], "mix": training["mix"]}
-        config = TrainConfig(**{**recipe, **({"data": args.data} if args.data else {})})
-        splits = split_sources([list_items(d) for d in config.data], config.val_fraction, config.seed)
-        items = validation_items([held_out for _, held_out in splits], config.max_val_images)
+        items = tuning_items(model, folder, args.data)
         for cells in (0.0, args.cells):
             scores = threshold_scores(model, items, min_resolved_cells=cells)
             thresholds = choose_thresholds(scores)

@@ -7,7 +7,9 @@ fitted plate grid's (:func:`platesynth.metrics.fit_plate_grid`), photo by photo 
 and models are tuned on the fit viruses, the check virus is only measured.
 
 Run: ``python benchmarks/zero_shot_counts.py`` (``--models DIR,DIR``, ``--threads T``, ``--table OUT.csv`` for the
-per-well records of the first model, ``--plaque-thresholds PROB,NMS`` in place of the models' own).
+per-well records of the first model, ``--plaque-thresholds PROB,NMS`` in place of the models' own). Each model's
+last line is its bias by virus and by the person's count (:func:`bias_by_count`): where a model misses crowded wells
+or finds plaques in sparse ones, which one MAE and bias over all wells mix.
 """
 
 from __future__ import annotations
@@ -19,10 +21,27 @@ import os
 import tempfile
 from pathlib import Path
 
-from shared_split import split_counts
+from shared_split import SPLITS, split_counts
 
 ROOT = Path(__file__).resolve().parents[1]
 SHARED = Path(os.environ.get("PLATESYNTH_SHARED", ROOT.parent / "shared"))
+COUNT_BINS = ((0, 5), (5, 20), (20, 50), (50, 200))
+"""Ranges of the person's count, ``[low, high)``, that :func:`bias_by_count` reports apart."""
+
+
+def bias_by_count(wells: list[dict]) -> str:
+    """Mean predicted minus counted plaques per well by virus (the photo name's prefix) and by the person's count
+    (:data:`COUNT_BINS`), from :func:`platesynth.segment.counts.evaluate_counts`'s per-well records of the wells it
+    scores (those with a count)."""
+    parts = []
+    for virus in SPLITS["all"]:
+        pairs = [(w["count"], w["predicted"]) for w in wells if w["image"].split("_")[0] == virus and w["count"] is not None]
+        bins = []
+        for low, high in COUNT_BINS:
+            errors = [found - counted for counted, found in pairs if low <= counted < high]
+            bins.append(f"{low}-{high}: {sum(errors) / len(errors):+.1f} ({len(errors)})" if errors else f"{low}-{high}: -")
+        parts.append(f"{virus} " + ", ".join(bins))
+    return "bias by the person's count (wells): " + "; ".join(parts)
 
 
 def main(argv: list[str] | None = None) -> None:
@@ -66,6 +85,7 @@ def main(argv: list[str] | None = None) -> None:
                     well_scale[key] = float(np.mean(radii) / np.mean([d.radius for d in fit_plate_grid(image[..., :3])]))
                 return cache[key]
 
+            records: list[dict] = []
             for split in ("fit", "check", "all"):
                 table = split_counts(counts, split, Path(tmp) / f"{split}.csv")
                 report = evaluate_counts(predict, plates, table, 12)
@@ -73,6 +93,8 @@ def main(argv: list[str] | None = None) -> None:
                 print(f"{Path(folder).name:28s} {split:6s} {report['n_wells']:5d} {report['mae']:6.2f} "
                       f"{report['rmse']:6.2f} {report['pearson_r']:6.3f} {report['bias']:+6.2f} "
                       f"{unc['n_uncountable']:5d} {unc['precision']:6.2f} {unc['recall']:6.2f}")
+                if split == "all":
+                    records = report["wells"]
                 if index == 0 and split == "all" and args.table is not None:
                     with args.table.open("w", newline="") as handle:
                         writer = csv.DictWriter(handle, fieldnames=list(report["wells"][0]))
@@ -81,6 +103,7 @@ def main(argv: list[str] | None = None) -> None:
             low, middle, high = np.percentile(list(well_scale.values()), [10, 50, 90])
             print(f"{Path(folder).name:28s} wells' radius over the fitted grid's, {len(well_scale)} photos: "
                   f"{low:.3f} {middle:.3f} {high:.3f} (10th, 50th, 90th percentiles)")
+            print(f"{Path(folder).name:28s} {bias_by_count(records)}")
 
 
 if __name__ == "__main__":

@@ -30,6 +30,7 @@ from platesynth.scene import (
     sample_scene,
 )
 from platesynth.scene.concrete import Stain
+from platesynth.scene.sample import RIM_TEAR_TILT_DEG
 
 
 @pytest.mark.parametrize("preset", ["high", "medium", "low", "lightbox12", "diverse"])
@@ -138,6 +139,37 @@ def test_lace_draws_lysed_wells_as_merged_plaques_after_every_other_draw():
         assert all(np.hypot(*(np.array(p.center_mm) - centres[p.well])) <= radius for p in added)
         coverage = [sum(p.radius_mm**2 for p in added if p.well == well_id) / radius**2 for well_id in lysed]
         assert np.mean(coverage) == pytest.approx(2.0, rel=0.15)  # 112 to 522 plaques a well, lognormal radii
+
+
+def test_rim_tears_are_scratches_from_the_rim_drawn_after_every_other_draw():
+    """``artifacts.rim_tears`` per well: short, wide scratches from just outside the rim of every well with a layer,
+    anywhere around it, running inward within ``RIM_TEAR_TILT_DEG`` of the radius, their length and width in range;
+    appended to the scratches from a stream of their own, so everything else stays as drawn without them."""
+    overrides = {"wells.emptied": 0.3, "artifacts.rim_tear_length_mm": [1.0, 2.0],
+                 "artifacts.rim_tear_width_mm": [0.8, 1.6]}
+    angles = []
+    for seed in range(4):
+        plain, torn = (sample_scene(load_config("high", overrides=overrides | {"artifacts.rim_tears": rate}), seed)
+                       for rate in (0.0, 2.0))
+        before = plain.artifacts.scratches
+        assert torn.artifacts.scratches[: len(before)] == before
+        assert torn.model_copy(update={"artifacts": plain.artifacts}) == plain
+        tears = torn.artifacts.scratches[len(before):]
+        emptied = {w.id for w in torn.wells if w.emptied}
+        assert tears and not any(t.well in emptied for t in tears)
+        centres = {w.id: np.array(w.center_mm) for w in torn.wells}
+        radius = torn.plate.well_radius_mm
+        for tear in tears:
+            start, end = (np.array(tear.points_mm[k]) for k in (0, -1))
+            outward = start - centres[tear.well]
+            assert np.linalg.norm(outward) == pytest.approx(1.02 * radius, abs=1e-3)
+            assert 1.0 - 1e-3 <= np.linalg.norm(end - start) <= 2.0 + 1e-3 and 0.8 <= tear.width_mm <= 1.6
+            off_radius = np.degrees(np.arccos((start - end) @ outward / (np.linalg.norm(start - end) * np.linalg.norm(outward))))
+            assert off_radius <= RIM_TEAR_TILT_DEG + 0.1
+            angles.append(np.arctan2(outward[1], outward[0]))
+        wells_with_layer = sum(not w.emptied for w in torn.wells)
+        assert len(tears) / wells_with_layer == pytest.approx(2.0, abs=0.8)
+    assert np.histogram(angles, bins=4, range=(-np.pi, np.pi))[0].min() > 0  # anywhere around the well
 
 
 def test_from_below_mirrors_the_image_grid():

@@ -33,6 +33,7 @@ from platesynth.segment.train import (
     split_items,
     threshold_scores,
     train,
+    tuning_items,
     validation_items,
 )
 
@@ -327,13 +328,14 @@ def test_threshold_scores_match_drawing_each_pair(rendered, tiny_model, min_cell
     scores = threshold_scores(model, items, probs, nms, min_resolved_cells=min_cells)
     mean_ap = np.zeros((3, 2))
     errors = [[[] for _ in nms] for _ in probs]
-    left_out = 0
+    left_out, truths = 0, []
     for item in items:
         image, wells, plaques = load_item(item)
         resolved, unresolved = resolvable_plaques(plaques, 1.0, 2, min_cells)  # 128 px images: the working size
         left_out += unresolved.size
         counted = [w for w, ok in rendered_countable(item).items() if ok]
         maps, working_shape = predict_maps(model, image)
+        truths += [plaque_counts(wells, resolved, counted)[w] for w in counted]
         for i, prob in enumerate(probs):
             for j, nms_thresh in enumerate(nms):
                 predicted = polygons_to_mask(nms_polygons(maps["plaques"], prob, nms_thresh), working_shape, wells.shape)
@@ -344,8 +346,27 @@ def test_threshold_scores_match_drawing_each_pair(rendered, tiny_model, min_cell
     assert (left_out > 0) == (min_cells > 0)
     assert np.abs(errors).sum() > 0 and len(np.unique(np.array(errors).sum(axis=-1))) > 1  # the thresholds matter
     np.testing.assert_array_equal(scores.count_errors, np.array(errors, float))
+    np.testing.assert_array_equal(scores.true_counts, np.array(truths, float))
+    assert scores.true_counts.sum() > 0
     np.testing.assert_allclose(scores.mean_ap["plaques"], mean_ap, rtol=1e-12)
     assert scores.mean_ap["wells"].shape == (3, 2) and 0 <= scores.mean_ap["wells"].min() <= scores.mean_ap["wells"].max() <= 1
+
+
+def test_tuning_items_are_the_held_out_renders_the_training_tuned_on(rendered, tiny_model, tmp_path):
+    model = load_model(tiny_model)
+    held_out = split_items(list_items(rendered), 0.25, 0)[1]  # the fixture's val_fraction and seed
+    assert held_out and tuning_items(model, tiny_model) == held_out
+    moved = tmp_path / "moved"
+    shutil.copytree(rendered, moved)
+    elsewhere = tuning_items(model, tiny_model, [moved])
+    assert [item.name for item in elsewhere] == [item.name for item in held_out]
+    assert all(item.image_path.parent.parent == moved for item in elsewhere)
+    # a model without train.json (the shipped one) is read from the recipe its config.json records
+    bare = tmp_path / "bare"
+    bare.mkdir()
+    for name in ("config.json", "weights.pt"):
+        shutil.copy2(tiny_model / name, bare / name)
+    assert tuning_items(model, bare) == held_out
 
 
 def test_validation_items_take_each_source_in_turn():

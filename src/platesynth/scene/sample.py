@@ -68,6 +68,8 @@ PIPETTE_ANGLE_SD = 0.08
 """Spread of a pipette scratch's position along the rim, radians from the top of the well."""
 SCRATCH_REACH, DEBRIS_REACH = 0.95, 0.97
 """Other scratches start, and specks lie, within this fraction of the well's radius."""
+RIM_TEAR_TILT_DEG = 60.0
+"""A rim tear runs inward from the rim at up to this angle off the well's radius, either side."""
 MARKER_JITTER_MM = 1.0
 """Spread of the marker writing's start around the free corner, mm per axis."""
 
@@ -360,6 +362,7 @@ def sample_scene(config: SceneConfig, seed: int) -> Scene:
     plaques = _shrink_crowded(plaques, c.plaques.draw("max_coverage", rng), plate.well_radius_mm)
     wells, lace_plaques = _lace_lysed_wells(scene_rng(seed, "lysed_lace"), c.plaques, wells, len(plaques), radius, shared)
     plaques += lace_plaques
+    scratches += _rim_tears(scene_rng(seed, "rim_tears"), a, wells, radius)
     return Scene(
         seed=texture_seed,
         plate=plate,
@@ -524,6 +527,28 @@ def _pipette_scratch(
     return Scratch(
         well=well_id, points_mm=tuple(map(_tuple2, points)), width_mm=width * section.draw("pipette_width_factor", rng)
     )
+
+
+def _rim_tears(rng: np.random.Generator, section: ArtifactsConfig, wells: list[Well], radius: float) -> list[Scratch]:
+    """The tears where the layer came off at the rim (``artifacts.rim_tears`` per well, Poisson): each a short, wide,
+    straight scratch from just outside the rim, anywhere around the well, running inward up to
+    :data:`RIM_TEAR_TILT_DEG` off the radius. Drawn from ``rng``, a stream of their own, after every other draw; an
+    emptied well has no layer to tear."""
+    rate = section.draw("rim_tears", rng)
+    tears = []
+    for well in wells:
+        if well.emptied:
+            continue
+        center = np.array(well.center_mm)
+        for _ in range(int(rng.poisson(rate))):
+            angle = rng.uniform(0.0, 2.0 * math.pi)
+            heading = angle + math.pi + math.radians(rng.uniform(-RIM_TEAR_TILT_DEG, RIM_TEAR_TILT_DEG))
+            start = center + radius * 1.02 * np.array([math.cos(angle), math.sin(angle)])
+            length = section.draw("rim_tear_length_mm", rng)
+            points = start + np.linspace(0.0, length, 3)[:, None] * np.array([math.cos(heading), math.sin(heading)])
+            tears.append(Scratch(well=well.id, points_mm=tuple(map(_tuple2, points)),
+                                 width_mm=section.draw("rim_tear_width_mm", rng)))
+    return tears
 
 
 def _marker_writing(

@@ -20,7 +20,7 @@ import json
 import math
 import os
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -132,6 +132,32 @@ def validation_items(val_sets: Sequence[Sequence[DatasetItem]], limit: int) -> l
     (and the thresholds tuned on it) however small ``limit`` is."""
     interleaved = [item for group in itertools.zip_longest(*val_sets) for item in group if item is not None]
     return interleaved[:limit]
+
+
+def tuning_items(
+    model: StarDistTwoBranch, model_dir: str | os.PathLike, data: Sequence[str | os.PathLike] = ()
+) -> list[DatasetItem]:
+    """The held-out items a finished model's thresholds were tuned on, split and taken in turn as its training did.
+
+    Parameters
+    ----------
+    model : the trained network (:func:`~platesynth.segment.model.load_model` of ``model_dir``).
+    model_dir : its folder: ``train.json`` there, or for a model without one (such as the shipped one) the recipe and
+        sources its ``config.json`` records.
+    data : the training's datasets in the same order, where they are no longer where it read them (rendered again
+        elsewhere: ``scripts/train_model.sh`` renders the same images); default the recorded folders.
+    """
+    saved = Path(model_dir) / TRAIN_CONFIG_NAME
+    if saved.is_file():
+        recipe = json.loads(saved.read_text())["train"]
+    else:
+        training = model.config.training or {}
+        if "recipe" not in training:
+            raise DatasetError(f"{model_dir}: neither {TRAIN_CONFIG_NAME} nor a training recipe in its config")
+        recipe = {**training["recipe"], "data": [s["dir"] for s in training["sources"]], "mix": training["mix"]}
+    config = TrainConfig(**{**recipe, **({"data": [str(d) for d in data]} if data else {})})
+    splits = split_sources([list_items(directory) for directory in config.data], config.val_fraction, config.seed)
+    return validation_items([held_out for _, held_out in splits], config.max_val_images)
 
 
 def mask_statistics(items: Sequence[DatasetItem], long_side: int) -> tuple[float, float | None]:
@@ -293,6 +319,8 @@ class ThresholdScores:
     """Per branch, the mean AP over the items at the matching IoU ``tau``."""
     count_errors: np.ndarray
     """``(P, N, wells)``: predicted minus true plaques of every countable well of the items."""
+    true_counts: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    """``(wells,)``: the true plaques of those wells, in the same order."""
 
 
 def threshold_scores(
@@ -319,6 +347,7 @@ def threshold_scores(
     shape = (len(prob_thresholds), len(nms_thresholds))
     mean_ap = {name: np.zeros(shape) for name in BRANCHES}
     errors: list[list[list[int]]] = [[[] for _ in nms_thresholds] for _ in prob_thresholds]
+    truths: list[int] = []
     grid = model.config.branches["plaques"].grid
     for item in items:
         image, wells, plaques = load_item(item)
@@ -328,6 +357,7 @@ def threshold_scores(
         scale = working_scale(plaques.shape, model.config.input_long_side)  # as predict_maps resizes the image
         resolved, unresolved = resolvable_plaques(plaques, scale, grid, min_resolved_cells)
         true_counts = plaque_counts(wells, resolved, counted)
+        truths += [true_counts[w] for w in counted]
         for name, truth in (("wells", wells), ("plaques", resolved)):
             for j, nms in enumerate(nms_thresholds):
                 kept = nms_polygons(maps[name], min(prob_thresholds), nms)
@@ -342,7 +372,8 @@ def threshold_scores(
                     if name == "plaques":
                         found = plaque_counts(wells, predicted, counted)
                         errors[i][j] += [found[w] - true_counts[w] for w in counted]
-    return ThresholdScores(prob_thresholds, nms_thresholds, mean_ap, np.array(errors, dtype=float).reshape(*shape, -1))
+    return ThresholdScores(prob_thresholds, nms_thresholds, mean_ap, np.array(errors, dtype=float).reshape(*shape, -1),
+                           np.array(truths, dtype=float))
 
 
 def choose_thresholds(scores: ThresholdScores) -> dict[str, tuple[float, float]]:
