@@ -284,6 +284,25 @@ def test_the_stain_and_lysed_wells_are_the_raster_renderers(pool):
     assert np.abs(change[0] - change[1]).max() < 0.25 * np.abs(change[1]).max(), change  # 0.3 levels apart measured
 
 
+@needs_bpy
+def test_the_rim_tears_are_the_raster_renderers(pool):
+    """``artifacts.rim_tears`` are scratches of the scene, which Blender takes from the same floor texture: the same
+    pixels grow paler in both renderers."""
+    overrides = {"plaques.negative_plate": 1.0, "wells.emptied": 0.0, "artifacts.rim_tear_width_mm": [1.5, 2.0]}
+    plain, torn = (sample_scene(load_config("high", overrides=overrides | {"artifacts.rim_tears": rate}), 7)
+                   for rate in (0.0, 2.0))
+    assert len(torn.artifacts.scratches) > len(plain.artifacts.scratches)
+    size = (320, 240)
+    changes = []
+    for render in (lambda scene: render_blender(scene, size, samples=SAMPLES, pool=pool), lambda scene: render_raster(scene, size)):
+        before, after = render(plain), render(torn)
+        changes.append(ndimage.gaussian_filter((after.image.astype(np.float64) - before.image).mean(axis=2), 1.0))
+    torn_pixels = changes[1] > 8.0  # paler by 8 levels or more in the raster renderer
+    assert torn_pixels.sum() > 100  # 879 measured
+    assert np.corrcoef(changes[0].ravel(), changes[1].ravel())[0, 1] > 0.9  # 0.985 measured
+    assert changes[0][torn_pixels].mean() == pytest.approx(changes[1][torn_pixels].mean(), rel=0.15)  # 32.3, 30.2
+
+
 def _scene_without_post():
     """A plate without plaques in a bright exposure (so that bloom has bright areas to glow around), and the same
     with every post-processing effect and the optical blur off (and sharpening per channel, noise per pixel, when
