@@ -37,7 +37,9 @@ render() {
 # and softer (eighteenth).
 # These settings, high's values of then, give the same configurations as then (compared with the manifests of its
 # data, and the first images and masks of each part pixel for pixel). The plaques' two apply to the high part
-# only: crowded-soft.yaml sets its own. AS_SHIPPED=0, or a HIGH_CONFIG, renders today's high instead.
+# only: crowded-soft.yaml sets its own. AS_SHIPPED=0, or a HIGH_CONFIG, renders today's high instead. One fix of the
+# renderer since changes a few of its images: the cloud of a lysed well past the right edge of the unevenness grid
+# (twenty-first session; 1 of the first 30 images of each part, medium's 000006.png, and no mask).
 AS_SHIPPED=${AS_SHIPPED:-1}
 SHIPPED_LOOK=()
 SHIPPED_PLAQUES=()

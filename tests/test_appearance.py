@@ -7,6 +7,7 @@ import pytest
 from scipy import ndimage
 
 from platesynth.render import appearance
+from platesynth.render.sampling import grid_sample
 from platesynth.render.textures import scene_textures
 from platesynth.scene import Plaque, PlaqueLook, load_config, sample_scene
 from platesynth.scene.concrete import Artifacts, Scratch
@@ -500,3 +501,18 @@ def test_lysed_speckle_is_finer_than_the_grain(base_scene):
     # the speckle's detail lies mostly below 0.1 mm (1.07 times what lies between 0.1 and 0.5 mm), the grain's flakes
     # above it (0.24 times)
     assert speckled[0] / speckled[1] > 2.5 * grainy[0] / grainy[1]
+
+
+def test_the_lysed_cloud_keeps_changing_along_the_whole_plate():
+    """A lysed well's cloud reads the unevenness grid :data:`LYSED_CLOUD_SHIFT` cells to the right, wrapping past
+    the grid's right edge: along the plate's whole length it keeps changing (clamped at the edge, it stood still over
+    the wells right of about 83 mm, a flat stretch of remnant)."""
+    scene = sample_scene(load_config("high"), 5)
+    textures = scene_textures(scene)
+    along = np.linspace(0.0, scene.plate.length_mm, 4000)
+    lumps = np.array([appearance.cloud_lumps(textures.low_grid, u, 40.0, textures.low_cell_mm) for u in along])
+    still = np.abs(np.diff(lumps)) < 1e-9
+    assert not (still[1:] & still[:-1]).any()  # steps of 0.03 mm in cells of several mm: never two in a row unchanged
+    clamped = np.array([grid_sample(textures.low_grid, u / textures.low_cell_mm + appearance.LYSED_CLOUD_SHIFT,
+                                    40.0 / textures.low_cell_mm) for u in along])
+    assert (np.abs(np.diff(clamped)) < 1e-9).sum() > 500  # what the clamped read did: standing still for mm

@@ -69,7 +69,9 @@ MENISCUS_MM = 0.2
 LYSED_CLOUD_CENTRE, LYSED_CLOUD_NOISE = 0.55, 0.25
 """The cloud of remnants: weight of the well's centre gradient and of the unevenness grid (read shifted)."""
 LYSED_CLOUD_SHIFT = 17.0
-"""The cloud reads the unevenness grid this many cells to the right, so it does not echo the stain's blotches."""
+"""The cloud reads the unevenness grid this many cells to the right, so it does not echo the stain's blotches (past
+the grid's right edge it reads on from its left edge: clamped there, the wells of the plate's right side kept a flat
+stretch of remnant)."""
 LYSED_STRAND_SHARE, LYSED_STRANDS = 0.6, 0.15
 """Remnant = ``stain.lysed_residue`` + cloud * (1 - share + share * strands) + LYSED_STRANDS * strands (clipped to
 [0, 1]), the strands scaled by ``stain.lysed_strands`` and the whole by the granular ``stain.lysed_grain``; a share
@@ -367,7 +369,7 @@ def monolayer_density(u, v, du, dv, dist, radius, well, stain, low_grid, fibre_g
         strands = (1.0 - min(abs(fibre), 1.0)) ** 2 * (1.0 - LYSED_STRAND_FINE + LYSED_STRAND_FINE * fine)
         if stain.lysed_strands != 1.0:
             strands *= stain.lysed_strands
-        lumps = grid_sample(low_grid, u / low_cell + LYSED_CLOUD_SHIFT, v / low_cell)
+        lumps = cloud_lumps(low_grid, u, v, low_cell)
         cloud = LYSED_CLOUD_CENTRE * gradient + LYSED_CLOUD_NOISE * lumps
         remnant = stain.lysed_residue + cloud * (1.0 - LYSED_STRAND_SHARE + LYSED_STRAND_SHARE * strands)
         if stain.lysed_disc > 0.0:  # gathered in a disc around the centre, with a wobbling, frayed outline
@@ -394,6 +396,13 @@ def monolayer_density(u, v, du, dv, dist, radius, well, stain, low_grid, fibre_g
     if well.lace > 0.5:  # the damaged layer between a lace well's plaques
         density *= stain.lysed_density
     return density, well.lysed + well.lace
+
+
+@njit(cache=True, nogil=True, inline="always")
+def cloud_lumps(low_grid, u, v, low_cell):
+    """The unevenness grid at plate point ``(u, v)`` mm read :data:`LYSED_CLOUD_SHIFT` cells to the right, wrapping
+    past its right edge: the lumps of a lysed well's cloud of remnants."""
+    return grid_sample(low_grid, (u / low_cell + LYSED_CLOUD_SHIFT) % (low_grid.shape[1] - 1.0), v / low_cell)
 
 
 @njit(cache=True, nogil=True, inline="always")
