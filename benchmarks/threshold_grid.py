@@ -18,7 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
-COUNT_BINS = ((0, 1), (1, 5), (5, 20), (20, 50), (50, 10**6))
+RENDERED_COUNT_BINS = ((0, 1), (1, 5), (5, 20), (20, 50), (50, 10**6))
 """Ranges of the rendered count, ``[low, high)``, whose bias is printed apart."""
 
 
@@ -29,10 +29,10 @@ def grid_table(title: str, values: np.ndarray, probs: tuple[float, ...], nms: tu
     return "\n".join(lines)
 
 
-def bias_by_count(errors: np.ndarray, true_counts: np.ndarray) -> str:
-    """Mean predicted minus rendered plaques per well by the rendered count (:data:`COUNT_BINS`)."""
+def bias_by_rendered_count(errors: np.ndarray, true_counts: np.ndarray) -> str:
+    """Mean predicted minus rendered plaques per well by the rendered count (:data:`RENDERED_COUNT_BINS`)."""
     parts = []
-    for low, high in COUNT_BINS:
+    for low, high in RENDERED_COUNT_BINS:
         inside = (true_counts >= low) & (true_counts < high)
         label = f"{low}+" if high == 10**6 else f"{low}-{high}"
         parts.append(f"{label}: {errors[inside].mean():+.2f} ({inside.sum()})" if inside.any() else f"{label}: -")
@@ -74,7 +74,7 @@ def main(argv: list[str] | None = None) -> None:
             raise SystemExit(f"--at {prob},{nms_thresh}: not a candidate pair ({probs}; {nms})")
         a, b = probs.index(prob), nms.index(nms_thresh)
         print(f"{name} {prob:g}/{nms_thresh:g}: MAE {mae[a, b]:.2f}, bias {bias[a, b]:+.2f}; by the rendered count: "
-              f"{bias_by_count(scores.count_errors[a, b], scores.true_counts)}")
+              f"{bias_by_rendered_count(scores.count_errors[a, b], scores.true_counts)}")
 
 
 if __name__ == "__main__":

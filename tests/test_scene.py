@@ -30,7 +30,7 @@ from platesynth.scene import (
     sample_scene,
 )
 from platesynth.scene.concrete import Stain
-from platesynth.scene.sample import RIM_TEAR_TILT_DEG
+from platesynth.scene.sample import RIM_START, RIM_TEAR_TILT_DEG
 
 
 @pytest.mark.parametrize("preset", ["high", "medium", "low", "lightbox12", "diverse"])
@@ -162,7 +162,7 @@ def test_rim_tears_are_scratches_from_the_rim_drawn_after_every_other_draw():
         for tear in tears:
             start, end = (np.array(tear.points_mm[k]) for k in (0, -1))
             outward = start - centres[tear.well]
-            assert np.linalg.norm(outward) == pytest.approx(1.02 * radius, abs=1e-3)
+            assert np.linalg.norm(outward) == pytest.approx(RIM_START * radius, abs=1e-3)
             assert 1.0 - 1e-3 <= np.linalg.norm(end - start) <= 2.0 + 1e-3 and 0.8 <= tear.width_mm <= 1.6
             off_radius = np.degrees(np.arccos((start - end) @ outward / (np.linalg.norm(start - end) * np.linalg.norm(outward))))
             assert off_radius <= RIM_TEAR_TILT_DEG + 0.1

@@ -66,6 +66,9 @@ LIGHT_PANEL_MM = (215.0, 300.0)
 """The light box's glowing panel (about A4), upright; it grows where the margins ask for more."""
 PIPETTE_ANGLE_SD = 0.08
 """Spread of a pipette scratch's position along the rim, radians from the top of the well."""
+RIM_START = 1.02
+"""Scratches that start at the rim (the pipette's, the tears) start this many well radii from the centre: just past
+the layer's edge, so that they open onto it."""
 SCRATCH_REACH, DEBRIS_REACH = 0.95, 0.97
 """Other scratches start, and specks lie, within this fraction of the well's radius."""
 RIM_TEAR_TILT_DEG = 60.0
@@ -515,7 +518,7 @@ def _pipette_scratch(
     angle = rng.normal(0.0, PIPETTE_ANGLE_SD)
     tilt = math.radians(section.draw("pipette_tilt_deg", pose))
     inward = np.array([-math.sin(angle), math.cos(angle)])
-    start = center - (radius * 1.02 - section.draw("pipette_inset_mm", pose)) * inward
+    start = center - (radius * RIM_START - section.draw("pipette_inset_mm", pose)) * inward
     length *= section.draw("pipette_length_factor", rng)
     bend = section.draw("pipette_bend", rng)
     t = np.linspace(0.0, 1.0, 5)
@@ -543,10 +546,9 @@ def _rim_tears(rng: np.random.Generator, section: ArtifactsConfig, wells: list[W
         for _ in range(int(rng.poisson(rate))):
             angle = rng.uniform(0.0, 2.0 * math.pi)
             heading = angle + math.pi + math.radians(rng.uniform(-RIM_TEAR_TILT_DEG, RIM_TEAR_TILT_DEG))
-            start = center + radius * 1.02 * np.array([math.cos(angle), math.sin(angle)])
-            length = section.draw("rim_tear_length_mm", rng)
-            points = start + np.linspace(0.0, length, 3)[:, None] * np.array([math.cos(heading), math.sin(heading)])
-            tears.append(Scratch(well=well.id, points_mm=tuple(map(_tuple2, points)),
+            start = center + radius * RIM_START * np.array([math.cos(angle), math.sin(angle)])
+            end = start + section.draw("rim_tear_length_mm", rng) * np.array([math.cos(heading), math.sin(heading)])
+            tears.append(Scratch(well=well.id, points_mm=(_tuple2(start), _tuple2(end)),
                                  width_mm=section.draw("rim_tear_width_mm", rng)))
     return tears
 
