@@ -39,7 +39,7 @@ render() {
 # data, and the first images and masks of each part pixel for pixel). The plaques' two apply to the high part
 # only: crowded-soft.yaml sets its own. AS_SHIPPED=0, or a HIGH_CONFIG, renders today's high instead. One fix of the
 # renderer since changes a few of its images: the cloud of a lysed well past the right edge of the unevenness grid
-# (twenty-first session; 1 of the first 30 images of each part, medium's 000006.png, and no mask).
+# (twenty-first session): of the first 30 images of each part, one of the 120 (medium's 000006.png), and no mask.
 AS_SHIPPED=${AS_SHIPPED:-1}
 SHIPPED_LOOK=()
 SHIPPED_PLAQUES=()
