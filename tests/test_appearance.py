@@ -479,6 +479,34 @@ def test_scratches_scrape_as_much_as_asked_with_soft_edges_and_hazed_light(base_
                                   appearance.floor_transmittance(clear, TEXELS_PER_MM)[beside])
 
 
+def test_scratch_heaps_darken_a_scratchs_edges_only(base_scene):
+    """``artifacts.scratch_heaps`` thickens the layer where a scratch's soft edge covers a texel in part (most where
+    it covers half), by that relative density: neither the scraped middle nor the layer beside the scratch change."""
+    scene, _ = base_scene
+    scene = scene.model_copy(update={"stain": scene.stain.model_copy(update={"translucency": 0.0})})
+
+    def density_across(**artifacts):
+        """The layer's absorbance in blue (its density times a constant: no light passes unabsorbed) along a row
+        across the scratch, and the scratched values there."""
+        variant, well = one_scratch(scene, scratch_clearing=0.95, scratch_softness_mm=0.1, **artifacts)
+        x, y = well.center_mm
+        transmittance = appearance.floor_transmittance(variant, TEXELS_PER_MM)
+        return -np.log(transmittance[int(y * TEXELS_PER_MM), :, 2]), well_content(variant).scratched[
+            int(y * TEXELS_PER_MM)]
+
+    plain, scratched = density_across()
+    heaped, _ = density_across(scratch_heaps=2.0)
+    cover = scratched / 0.95
+    edge, middle, beside = (cover > 0.3) & (cover < 0.7), cover > 0.999, cover == 0.0
+    assert edge.sum() >= 2 and middle.sum() >= 2
+    # at a texel half covered the layer keeps half its density, then gains twice its density: 2.5 times as dense
+    np.testing.assert_allclose(heaped[edge] / plain[edge], (1.0 - scratched[edge] + 2.0 * 4.0 * cover[edge] * (
+        1.0 - cover[edge])) / (1.0 - scratched[edge]), rtol=0.02)
+    assert (heaped[edge] > 2.0 * plain[edge]).all()
+    np.testing.assert_allclose(heaped[middle], plain[middle], rtol=1e-5)
+    np.testing.assert_array_equal(heaped[beside], plain[beside])
+
+
 def test_lysed_speckle_is_finer_than_the_grain(base_scene):
     scene, well = base_scene
     lysed = one_lysed_well(scene, well)

@@ -48,11 +48,11 @@ def test_presets_load_and_sample_json_roundtrip(preset):
 # sha256 of sample_scene(load_config(preset), 3).model_dump_json(): sampling must not change without intent (a change
 # here changes every dataset rendered from these presets). Update only for a deliberate change of the sampling.
 SCENE_SHA256_SEED3 = {
-    "diverse": "5be7cc6f8a0b5e8145b7ec83a935767abf8c3c16fa2bb840191c82e7d9087af2",
-    "high": "bf536227801df9e427c35d22cf07740bb1070015eb1f6129d5c3021761bd294e",
-    "lightbox12": "3fc67ac3cfb530782a6b56b00fe31e3b9782a138137808c678cad64007802f9a",
-    "low": "e20dfaa44fd00672285e2c5a5d872bd61025ced21d0ba985d2f8e9b5b5ac8cdf",
-    "medium": "88bce3fb3146d4a779efe73478b769bfae2dabe81529561a747c694b79e779ff",
+    "diverse": "1fcf0d1e4fe32f0d5a8de5561086557b2a905678d8dfdc274c51ce88db4e6fb5",
+    "high": "7306f54ffe1639dd28a2d58a99bb07f5b3c5e56c0ad6fb95c922713ee2b974a5",
+    "lightbox12": "5d12fe6a5707c8238604d0ed9eb38dc5a66c6ce44009371873a84115e548503e",
+    "low": "e184ff25e311a3ecba5b574ba6062f9d8f38cda8329c3685c1857118f3a3590a",
+    "medium": "63e96b5b52826528932babe2928cd69768f3ab9ba7a708e80433590cb6d095f5",
 }
 
 
@@ -464,6 +464,7 @@ def test_lysed_paleness_draws_the_remnants_colour_from_the_pale_palette_and_noth
     ("artifacts", {"artifacts.scratch_clearing": [0.8, 0.9], "artifacts.scratch_softness_mm": [0.05, 0.15],
                    "artifacts.scratch_haze": [0.2, 0.4]},
      {"artifacts.scratch_clearing": 0.95, "artifacts.scratch_softness_mm": 0.0, "artifacts.scratch_haze": 0.0}),
+    ("artifacts", {"artifacts.scratch_heaps": [1.0, 2.0]}, {"artifacts.scratch_heaps": 0.0}),
     ("plate_look", {"plate.crescent_veil": [0.02, 0.1]}, {"plate.crescent_veil": 0.0}),
     ("plate_look", {"plate.wall_lines": [0.2, 0.5], "plate.wall_highlights": [0.05, 0.15]},
      {"plate.wall_lines": 0.0, "plate.wall_highlights": 0.0}),

@@ -188,6 +188,8 @@ STAIN_DTYPE = np.dtype(
         ("lysed_absorbance_g", np.float64),
         ("lysed_absorbance_b", np.float64),
         ("scratch_shade", np.float64),  # light the scratched plastic loses per unit of scraped stain
+        ("scratch_heap", np.float64),  # added density, relative, of the cells heaped along a scratch's edges
+        ("scratch_full", np.float64),  # the scratched value where a scratch covers a pixel (its clearing)
         ("residual_mottle", np.float64),  # the plaque look's unevenness of the stain left inside plaques
         ("residual_tint", np.float64),  # and the share of it in the lysed colour
     ]
@@ -277,7 +279,8 @@ def stain_table(scene: Scene, textures: SceneTextures) -> np.ndarray:
                 math.cos(math.radians(stain.rim_mottle_angle_deg)), math.sin(math.radians(stain.rim_mottle_angle_deg)),
                 stain.rim_mottle_patches, stain.meniscus, stain.lysed_density, stain.lysed_residue, stain.lysed_strands,
                 stain.lysed_grain, stain.lysed_speckle, stain.lysed_disc, stain.lysed_disc_radius, clump_level(stain.lysed_clumps), *absorbance,
-                *lysed_absorbance, scratch_shade(scene), scene.plaque_look.residual_mottle,
+                *lysed_absorbance, scratch_shade(scene), scene.artifacts.scratch_heaps, scene.artifacts.scratch_clearing,
+                scene.plaque_look.residual_mottle,
                 scene.plaque_look.residual_tint)
     return table
 
@@ -409,8 +412,9 @@ def cloud_lumps(low_grid, u, v, low_cell):
 def changed_density(density, lysed, u, v, well, stain, clearing, rim, scratched, speck, residual_tile):
     """``density`` cleared by plaques (``clearing`` 0..1, with the residual stain left inside, uneven by the plate's
     ``stain.residual_mottle`` and taking the lysed colour by ``stain.residual_tint``), thickened along
-    their rims (``rim``, relative), scraped by scratches (``scratched`` 0..1) and darkened by specks (``speck``,
-    added density)."""
+    their rims (``rim``, relative), scraped by scratches (``scratched`` 0..1), thickened where the scraped cells
+    heaped up along the scratches' edges (``stain.scratch_heap``, relative, most where a scratch covers half a
+    pixel) and darkened by specks (``speck``, added density)."""
     if clearing > 0.0:
         residual = tile_sample(residual_tile, (u + well.noise_y) / RESIDUAL_CELL_MM, (v + well.noise_x) / RESIDUAL_CELL_MM)
         residual = min(max(RESIDUAL_MEAN + stain.residual_mottle * residual, 0.0), 1.0)
@@ -418,7 +422,11 @@ def changed_density(density, lysed, u, v, well, stain, clearing, rim, scratched,
         lysed += (1.0 - lysed) * stain.residual_tint * clearing
     if rim > 0.0:
         density *= 1.0 + rim
-    return density * (1.0 - scratched) + speck, lysed
+    heaped = 0.0
+    if scratched > 0.0 and stain.scratch_heap > 0.0:
+        cover = min(scratched / stain.scratch_full, 1.0)
+        heaped = stain.scratch_heap * 4.0 * cover * (1.0 - cover)
+    return density * (1.0 - scratched + heaped) + speck, lysed
 
 
 @njit(cache=True, nogil=True, inline="always")

@@ -259,6 +259,9 @@ class ArtifactsConfig(Section):
                                        "(torn cells, not a cut: 0 is as sharp as a pixel)")
     scratch_haze: Dist = number(0.0, 0.0, 0.9, "", "share of the light the scratched plastic under the plate's "
                                 "scratches scatters away (a greyer scrape)")
+    scratch_heaps: Dist = number(0.0, 0.0, 3.0, "", "extra stain density, relative, along the edges of the plate's "
+                                 "scratches, where the cells they scraped off heaped up: thin dark margins (the photos' "
+                                 "scrapes are white strips edged in dark lines; 0: none)")
     rim_tears: Dist = number(0.0, 0.0, 5.0, "per well",
                              "mean number of tears per well: short, wide strips where the layer came off at the rim "
                              "(a pipette tip or the aspiration, anywhere around the well), drawn as the plate's "

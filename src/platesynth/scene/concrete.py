@@ -231,6 +231,7 @@ class Artifacts(_Concrete):
     scratch_clearing: float = Field(0.95, description="share of the stain the scratches scrape off, 0..1")
     scratch_softness_mm: float = Field(0.0, description="width over which the scratches' edges fade, mm")
     scratch_haze: float = Field(0.0, description="share of the light the scratched plastic scatters away, 0..1")
+    scratch_heaps: float = Field(0.0, description="added stain density, relative, along the scratches' edges")
     marker: tuple[MarkerStroke, ...] = ()
     blots: tuple[Blot, ...] = ()
     debris: tuple[Debris, ...] = ()
