@@ -13,8 +13,8 @@ under 60 and mean level under 150) and prints their medians:
 - ``chroma_over_luma``: the sd of red minus blue fine detail over that of the mean of the channels;
 - ``green_clipped``: the share of pixels with green at 0 or 1; ``green_mean``: the mean green level.
 
-Run: ``python benchmarks/well_grain.py --split fit --config look.yaml`` (renders of ``--preset`` high with the
-configuration over it, ``--plates`` 10 at 1216x944, seeds 10000 on, as the contact sheet draws them).
+Run: ``python benchmarks/well_grain.py --split fit --config look.yaml`` (``--images`` 10 raster renders at 1216x944
+of ``--preset`` high with the configuration over it, seeds 10000 on as the contact sheet draws them; ``--set``).
 """
 
 from __future__ import annotations
@@ -27,6 +27,7 @@ from pathlib import Path
 import numpy as np
 from scipy.ndimage import gaussian_filter
 
+from preset_options import add_preset_options, preset_config
 from shared_split import in_split
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -66,15 +67,15 @@ def photo_wells(split: str) -> Iterator[np.ndarray]:
                 yield crop_well(image, disc, 200)
 
 
-def rendered_wells(preset: str, config: Path | None, plates: int) -> Iterator[np.ndarray]:
-    """The 200x200 crops of every well of ``plates`` raster renders at 1216x944 (the contact sheet's scenes)."""
+def rendered_wells(scene_config, images: int, seed: int) -> Iterator[np.ndarray]:
+    """The 200x200 crops of every well of ``images`` raster renders of ``scene_config`` at 1216x944, seeds from
+    ``seed``."""
     from platesynth.metrics import crop_well, fit_plate_grid
     from platesynth.render.raster import render_raster
-    from platesynth.scene import load_config, sample_scene
+    from platesynth.scene import sample_scene
 
-    scene_config = load_config(preset, path=config)
-    for seed in range(10_000, 10_000 + plates):
-        scene = sample_scene(scene_config, seed)
+    for index in range(images):
+        scene = sample_scene(scene_config, seed + index)
         image = render_raster(scene, (1216, 944)).image
         for disc in fit_plate_grid(image, (scene.plate.rows, scene.plate.cols)):
             yield crop_well(image, disc, 200)
@@ -93,17 +94,13 @@ def main(argv: list[str] | None = None) -> None:
     """Print the medians for the photos of a split and for the renders of a preset (with a configuration)."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--split", choices=("all", "fit", "check"), default="fit")
-    parser.add_argument("--preset", default="high")
-    parser.add_argument("--config", type=Path, action="append", default=[],
-                        help="a YAML scene configuration over the preset (repeat to compare several)")
-    parser.add_argument("--plates", type=int, default=10, help="rendered plates per look")
+    add_preset_options(parser, images=10, seed=10_000)
     args = parser.parse_args(argv)
     if not (SHARED / "data" / "plaque12" / "plates").is_dir():
         raise SystemExit(f"no shared photos under {SHARED} (set PLATESYNTH_SHARED)")
     print(medians(f"photos, {args.split}", photo_wells(args.split)))
-    for config in args.config or [None]:
-        look = args.preset + (f" with {config}" if config else "")
-        print(medians(look, rendered_wells(args.preset, config, args.plates)))
+    scene_config, label = preset_config(args)
+    print(medians(label, rendered_wells(scene_config, args.images, args.seed)))
 
 
 if __name__ == "__main__":

@@ -1,0 +1,53 @@
+"""The grain statistics of saturated wells (benchmarks/well_grain.py), on tiles whose grain is known."""
+
+from __future__ import annotations
+
+import importlib.util
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+BENCHMARKS = Path(__file__).resolve().parents[1] / "benchmarks"
+
+
+@pytest.fixture(scope="module")
+def grain():
+    sys.path.insert(0, str(BENCHMARKS))  # the script imports its neighbours shared_split and preset_options
+    try:
+        spec = importlib.util.spec_from_file_location("well_grain", BENCHMARKS / "well_grain.py")
+        module = importlib.util.module_from_spec(spec)
+        spec.loader.exec_module(module)
+        yield module
+    finally:
+        sys.path.remove(str(BENCHMARKS))
+
+
+def tile(rgb, shared_sd: float, own_sd: float, seed: int = 0) -> np.ndarray:
+    """A 200x200 well crop of one colour with Gaussian noise, ``shared_sd`` the same in every channel and ``own_sd``
+    each channel's own (8-bit levels), rounded and clipped as an image is stored."""
+    rng = np.random.default_rng(seed)
+    shared = rng.normal(0.0, shared_sd, (200, 200, 1))
+    own = rng.normal(0.0, own_sd, (200, 200, 3))
+    return np.clip(np.round(np.array(rgb, float) + shared + own), 0, 255).astype(np.uint8)
+
+
+def test_grey_grain_is_the_same_in_every_channel_and_colour_noise_is_not(grain):
+    grey = grain.grain_statistics(tile((90, 30, 200), shared_sd=3.0, own_sd=0.0))
+    # white noise less its 2-D blur of sd 1 px, whose centre weight is 1 / (2 pi) and squared weights sum to 1 / (4 pi):
+    # a variance of 1 - 2 / (2 pi) + 1 / (4 pi) of the noise's
+    assert grey["fine_sd"] == pytest.approx(3.0 * np.sqrt(1 - 1 / np.pi + 1 / (4 * np.pi)), rel=0.03)
+    assert grey["rb_corr"] > 0.99 and grey["chroma_over_luma"] < 0.05
+    colour = grain.grain_statistics(tile((90, 30, 200), shared_sd=0.0, own_sd=3.0))
+    # independent channels: red minus blue has twice a channel's variance, the mean of three a third of it
+    assert colour["rb_corr"] == pytest.approx(0.0, abs=0.03)
+    assert colour["chroma_over_luma"] == pytest.approx(np.sqrt(2 * 3), rel=0.05)
+    assert grey["green_clipped"] == 0.0 and grey["green_mean"] == pytest.approx(30.0, abs=0.1)
+
+
+def test_a_clipped_green_is_counted_and_pale_wells_are_left_out(grain):
+    crushed = grain.grain_statistics(tile((90, 0, 200), shared_sd=0.0, own_sd=1.0))
+    # levels 0 and 1 count as clipped: noise of sd 1 about 0 stays under 1.5 with the normal's chance 0.933
+    assert crushed["green_clipped"] == pytest.approx(0.933, abs=0.02)
+    assert grain.grain_statistics(tile((150, 120, 230), shared_sd=1.0, own_sd=0.0)) is None  # green over 60
