@@ -2,25 +2,14 @@
 
 from __future__ import annotations
 
-import importlib.util
-import sys
-from pathlib import Path
-
 import pytest
 
-BENCHMARKS = Path(__file__).resolve().parents[1] / "benchmarks"
+from _benchmarks import benchmark_module
 
 
 @pytest.fixture(scope="module")
 def sheet():
-    sys.path.insert(0, str(BENCHMARKS))  # the script imports its neighbour shared_split
-    try:
-        spec = importlib.util.spec_from_file_location("well_contact_sheet", BENCHMARKS / "well_contact_sheet.py")
-        module = importlib.util.module_from_spec(spec)
-        spec.loader.exec_module(module)
-        yield module
-    finally:
-        sys.path.remove(str(BENCHMARKS))
+    yield from benchmark_module("well_contact_sheet")
 
 
 def test_score_counts_renders_found_and_photos_kept(sheet, tmp_path):

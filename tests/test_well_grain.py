@@ -2,26 +2,15 @@
 
 from __future__ import annotations
 
-import importlib.util
-import sys
-from pathlib import Path
-
 import numpy as np
 import pytest
 
-BENCHMARKS = Path(__file__).resolve().parents[1] / "benchmarks"
+from _benchmarks import benchmark_module
 
 
 @pytest.fixture(scope="module")
 def grain():
-    sys.path.insert(0, str(BENCHMARKS))  # the script imports its neighbours shared_split and preset_options
-    try:
-        spec = importlib.util.spec_from_file_location("well_grain", BENCHMARKS / "well_grain.py")
-        module = importlib.util.module_from_spec(spec)
-        spec.loader.exec_module(module)
-        yield module
-    finally:
-        sys.path.remove(str(BENCHMARKS))
+    yield from benchmark_module("well_grain")
 
 
 def tile(rgb, shared_sd: float, own_sd: float, seed: int = 0) -> np.ndarray:
