@@ -507,6 +507,62 @@ def test_scratch_heaps_darken_a_scratchs_edges_only(base_scene):
     np.testing.assert_array_equal(heaped[beside], plain[beside])
 
 
+def test_scratch_ridge_lays_flaps_inside_one_edge_and_a_clump_past_the_end(base_scene):
+    """``artifacts.scratch_ridge`` lays rolled-up cells over the scrape, on the side ``ridge_side`` of its centre
+    line only: a ragged strip near that edge that the scrape does not clear, at full coverage that relative density
+    of the layer, and a clump beside the scratch's end."""
+    scene, _ = base_scene
+    scene = scene.model_copy(update={"stain": scene.stain.model_copy(update={"translucency": 0.0})})
+    variant, well = one_scratch(scene, scratch_clearing=0.95, scratch_ridge=2.0)
+    x, y = well.center_mm
+    rows = slice(int((y - 1.8) * TEXELS_PER_MM), int((y + 1.8) * TEXELS_PER_MM))
+    column = int(x * TEXELS_PER_MM)  # the texel whose left edge is the centre line
+    heaped = well_content(variant).heaped
+    # the scratch runs down (+y): its left (+1) is -x; the ridge lies 0.6 half widths (0.18 mm) off the centre line
+    left, right = heaped[rows, column - 8:column], heaped[rows, column:column + 8]
+    assert right.max() == 0.0
+    assert left.max() == pytest.approx(2.0)
+    ridge = left[:, 8 - int(0.18 * TEXELS_PER_MM) - 1]
+    assert ridge.min() < 0.5 * ridge.max()  # it varies along the scrape: flaps, not an even line
+    # the scrape keeps what it did not clear, and the ridge gains twice the layer's density
+    transmittance = appearance.floor_transmittance(variant, TEXELS_PER_MM)
+    plain = appearance.floor_transmittance(one_scratch(scene, scratch_clearing=0.95)[0], TEXELS_PER_MM)
+    scratched = well_content(variant).scratched
+    full = np.argwhere(heaped[rows] == 2.0)[0] + (rows.start, 0)
+    ratio = np.log(transmittance[(*full, 2)]) / np.log(plain[(*full, 2)])
+    assert ratio == pytest.approx((1.0 - scratched[tuple(full)] + 2.0) / (1.0 - scratched[tuple(full)]), rel=0.01)
+    # the clump: 0.15 mm to the left of the end and 0.15 mm past it, 0.18 mm in radius
+    clump = int((y + 2.15) * TEXELS_PER_MM), int((x - 0.15) * TEXELS_PER_MM)
+    assert heaped[clump] == pytest.approx(2.0)
+    assert heaped[clump[0] + 8, clump[1]] == 0.0
+    mirrored = one_scratch(scene, scratch_clearing=0.95, scratch_ridge=2.0)[0]
+    mirrored = mirrored.model_copy(update={"artifacts": mirrored.artifacts.model_copy(update={
+        "scratches": (mirrored.artifacts.scratches[0].model_copy(update={"ridge_side": -1}),)})})
+    other = well_content(mirrored).heaped
+    assert other[rows, column - 8:column].max() == 0.0 and other[rows, column:column + 8].max() == pytest.approx(2.0)
+
+
+def test_pooling_thickens_each_well_toward_the_plates_tilt_only(base_scene):
+    """``stain.pooling`` multiplies the layer's density by ``1 + pooling * p**2``, ``p`` the distance toward the side
+    of ``rim_mottle_angle_deg`` over the radius where positive: the same in every well, nothing on the other side or
+    across."""
+    scene, _ = base_scene
+    scene = scene.model_copy(update={"plaques": (), "stain": scene.stain.model_copy(update={
+        "translucency": 0.0, "rim_mottle_angle_deg": 90.0})})
+    pooled = scene.model_copy(update={"stain": scene.stain.model_copy(update={"pooling": 0.5})})
+    plain, thick = (-np.log(appearance.floor_transmittance(s, TEXELS_PER_MM)[..., 2]) for s in (scene, pooled))
+    radius = scene.plate.well_radius_mm
+    for well in (scene.wells[0], scene.wells[7]):
+        x, y = well.center_mm
+        texel = lambda dx, dy: (int((y + dy * radius) * TEXELS_PER_MM), int((x + dx * radius) * TEXELS_PER_MM))
+        for dy in (0.3, 0.6, 0.9):
+            p = (texel(0.0, dy)[0] + 0.5) / TEXELS_PER_MM - y
+            assert thick[texel(0.0, dy)] / plain[texel(0.0, dy)] == pytest.approx(1.0 + 0.5 * (p / radius) ** 2,
+                                                                                  rel=1e-4)
+            assert thick[texel(0.0, -dy)] == pytest.approx(plain[texel(0.0, -dy)], rel=1e-6)
+        assert thick[texel(0.9, 0.0)] == pytest.approx(plain[texel(0.9, 0.0)], rel=1e-3)
+
+
 def test_lysed_speckle_is_finer_than_the_grain(base_scene):
     scene, well = base_scene
     lysed = one_lysed_well(scene, well)

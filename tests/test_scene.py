@@ -48,11 +48,11 @@ def test_presets_load_and_sample_json_roundtrip(preset):
 # sha256 of sample_scene(load_config(preset), 3).model_dump_json(): sampling must not change without intent (a change
 # here changes every dataset rendered from these presets). Update only for a deliberate change of the sampling.
 SCENE_SHA256_SEED3 = {
-    "diverse": "1fcf0d1e4fe32f0d5a8de5561086557b2a905678d8dfdc274c51ce88db4e6fb5",
-    "high": "7306f54ffe1639dd28a2d58a99bb07f5b3c5e56c0ad6fb95c922713ee2b974a5",
-    "lightbox12": "5d12fe6a5707c8238604d0ed9eb38dc5a66c6ce44009371873a84115e548503e",
-    "low": "e184ff25e311a3ecba5b574ba6062f9d8f38cda8329c3685c1857118f3a3590a",
-    "medium": "63e96b5b52826528932babe2928cd69768f3ab9ba7a708e80433590cb6d095f5",
+    "diverse": "30ca02d988587ae9e0b2ad818e1aac48dd51c569e0b3bf1667c9ebbf70887993",
+    "high": "0514d176a75791ab3f024c760c363fecb01fd5a35207aa561cd40f0c6caade5e",
+    "lightbox12": "bea390be7f0b2f27db10303b6954ed24e66975a68dca924afc77538f9b0fa1f2",
+    "low": "b22b06ea6ca7313df3933e8ac22579a829a0ee19388ac224166294b8fe1aeaab",
+    "medium": "72b6be8ced2076ef31982efefbf51f428ad484b7de4b3a8dacca466cd6381642",
 }
 
 
@@ -465,6 +465,8 @@ def test_lysed_paleness_draws_the_remnants_colour_from_the_pale_palette_and_noth
                    "artifacts.scratch_haze": [0.2, 0.4]},
      {"artifacts.scratch_clearing": 0.95, "artifacts.scratch_softness_mm": 0.0, "artifacts.scratch_haze": 0.0}),
     ("artifacts", {"artifacts.scratch_heaps": [1.0, 2.0]}, {"artifacts.scratch_heaps": 0.0}),
+    ("artifacts", {"artifacts.scratch_ridge": [1.0, 2.0]}, {"artifacts.scratch_ridge": 0.0}),
+    ("stain", {"stain.pooling": [0.2, 0.5]}, {"stain.pooling": 0.0}),
     ("plate_look", {"plate.crescent_veil": [0.02, 0.1]}, {"plate.crescent_veil": 0.0}),
     ("plate_look", {"plate.wall_lines": [0.2, 0.5], "plate.wall_highlights": [0.05, 0.15]},
      {"plate.wall_lines": 0.0, "plate.wall_highlights": 0.0}),
@@ -479,6 +481,15 @@ def test_a_parameter_added_later_is_drawn_beside_the_others(part, drawn, fixed):
             assert getattr(getattr(constant, part), name.split(".")[1]) == value
         same = constant.model_copy(update={part: getattr(constant, part).model_copy(update=values)})
         assert same == varied  # its own random stream: every other draw of the scene stays as it was
+
+
+def test_each_scratch_heaps_its_ridge_on_a_side_of_its_own():
+    """Every scratch, rim tears included, has its ridge (``artifacts.scratch_ridge``) on a side drawn for it: both
+    sides occur, about as often."""
+    config = load_config("high", overrides={"artifacts.rim_tears": 1.0})
+    sides = [s.ridge_side for seed in range(3) for s in sample_scene(config, seed).artifacts.scratches]
+    assert set(sides) == {-1, 1}
+    assert 0.3 < np.mean(np.array(sides) > 0) < 0.7
 
 
 def test_pipette_scratches_tilt_and_start_inside_the_rim_as_drawn():

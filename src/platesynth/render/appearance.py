@@ -42,7 +42,7 @@ from platesynth.render.textures import (
     plate_grid_index,
     scene_textures,
 )
-from platesynth.scene.concrete import Scene, Stain, Well
+from platesynth.scene.concrete import Scene, Scratch, Stain, Well
 from platesynth.scene.sample import stain_rgb
 
 # ---- the monolayer
@@ -125,6 +125,18 @@ RAGGED_SCALES = ((0.9, 0.5), (0.3, 0.3), (0.1, 0.2))
 draw their own noise, so a scrape is a torn strip, not a chain of beads (the periodic waves of before, which blind
 judges named); ``artifacts.scratch_roughness`` scales the sum."""
 
+RIDGE_WIDTH = 0.3
+"""The ridge of cells a scratch heaped up on one of its edges (``artifacts.scratch_ridge``) is this share of the
+scratch's width wide."""
+RIDGE_OFFSET = 0.6
+"""The ridge runs this share of the scratch's half width off its centre line: inside the scrape, near its edge, a
+flap of rolled-up cells with bare plastic on either side (as in the photos, not a shadow beside the scrape)."""
+RIDGE_RAGGEDNESS = 1.3
+"""The ridge's width varies along it by this share (:func:`edge_noise`), so that it breaks into flaps of rolled-up
+cells where the photos have them, not a drop shadow along the whole scrape."""
+TIP_CLUMP = 0.6
+"""The clump of cells a scratch pushed to one side of its end is this share of the scratch's half width in radius."""
+
 WELL_DTYPE = np.dtype(
     [
         ("id", np.float64),
@@ -192,6 +204,7 @@ STAIN_DTYPE = np.dtype(
         ("scratch_full", np.float64),  # the scratched value where a scratch covers a pixel (its clearing)
         ("residual_mottle", np.float64),  # the plaque look's unevenness of the stain left inside plaques
         ("residual_tint", np.float64),  # and the share of it in the lysed colour
+        ("pooling", np.float64),  # the dye pooled toward the side of rim_mottle_cos/sin
     ]
 )
 """The plate-wide stain (a one-row array, :func:`stain_table`)."""
@@ -281,7 +294,7 @@ def stain_table(scene: Scene, textures: SceneTextures) -> np.ndarray:
                 stain.lysed_grain, stain.lysed_speckle, stain.lysed_disc, stain.lysed_disc_radius, clump_level(stain.lysed_clumps), *absorbance,
                 *lysed_absorbance, scratch_shade(scene), scene.artifacts.scratch_heaps, scene.artifacts.scratch_clearing,
                 scene.plaque_look.residual_mottle,
-                scene.plaque_look.residual_tint)
+                scene.plaque_look.residual_tint, stain.pooling)
     return table
 
 
@@ -346,6 +359,9 @@ def monolayer_density(u, v, du, dv, dist, radius, well, stain, low_grid, fibre_g
     across = (-cu * well.centre_sin + cv * well.centre_cos) * sqrt_el / spread
     gradient = math.exp(-(along * along + across * across))
     density *= 1.0 + well.centre_gradient * gradient
+    if stain.pooling > 0.0:  # the dye pooled toward the side the plate was tilted to, most near that rim
+        downhill = max((du * stain.rim_mottle_cos + dv * stain.rim_mottle_sin) / radius, 0.0)
+        density *= 1.0 + stain.pooling * downhill * downhill
     rim_clearing = stain.rim_clearing_mm
     if rim_clearing > 0.0 and radius - dist < RIM_REACH * rim_clearing:
         density *= 1.0 - RIM_THINNING * math.exp(-max(radius - dist, 0.0) / rim_clearing)
@@ -409,12 +425,13 @@ def cloud_lumps(low_grid, u, v, low_cell):
 
 
 @njit(cache=True, nogil=True, inline="always")
-def changed_density(density, lysed, u, v, well, stain, clearing, rim, scratched, speck, residual_tile):
+def changed_density(density, lysed, u, v, well, stain, clearing, rim, scratched, heaped, speck, residual_tile):
     """``density`` cleared by plaques (``clearing`` 0..1, with the residual stain left inside, uneven by the plate's
     ``stain.residual_mottle`` and taking the lysed colour by ``stain.residual_tint``), thickened along
     their rims (``rim``, relative), scraped by scratches (``scratched`` 0..1), thickened where the scraped cells
-    heaped up along the scratches' edges (``stain.scratch_heap``, relative, most where a scratch covers half a
-    pixel) and darkened by specks (``speck``, added density)."""
+    heaped up: along the scratches' edges (``stain.scratch_heap``, relative, most where a scratch covers half a
+    pixel) and in their ridges (``heaped``, relative, laid over the scrape), and darkened by specks (``speck``, added
+    density)."""
     if clearing > 0.0:
         residual = tile_sample(residual_tile, (u + well.noise_y) / RESIDUAL_CELL_MM, (v + well.noise_x) / RESIDUAL_CELL_MM)
         residual = min(max(RESIDUAL_MEAN + stain.residual_mottle * residual, 0.0), 1.0)
@@ -422,10 +439,9 @@ def changed_density(density, lysed, u, v, well, stain, clearing, rim, scratched,
         lysed += (1.0 - lysed) * stain.residual_tint * clearing
     if rim > 0.0:
         density *= 1.0 + rim
-    heaped = 0.0
     if scratched > 0.0 and stain.scratch_heap > 0.0:
         cover = min(scratched / stain.scratch_full, 1.0)
-        heaped = stain.scratch_heap * 4.0 * cover * (1.0 - cover)
+        heaped += stain.scratch_heap * 4.0 * cover * (1.0 - cover)
     return density * (1.0 - scratched + heaped) + speck, lysed
 
 
@@ -604,6 +620,27 @@ def draw_capsules(hinv, segments, values, boxes, pixel_mm, softness_mm, out):
                     out[y, x] = coverage
 
 
+def ridge_segments(scratch: Scratch) -> np.ndarray:
+    """The capsules (rows of :func:`draw_capsules`' ``segments``) of the cells ``scratch`` heaped up: a ridge
+    :data:`RIDGE_WIDTH` of its width wide, :data:`RIDGE_OFFSET` towards its side ``scratch.ridge_side``, broken into flaps by
+    :data:`RIDGE_RAGGEDNESS`, and a clump :data:`TIP_CLUMP` of its half width in radius on the same side of its end."""
+    points = np.asarray(scratch.points_mm, dtype=np.float64)
+    half = 0.5 * scratch.width_mm
+    steps = np.diff(points, axis=0)
+    tangents = steps / np.maximum(np.linalg.norm(steps, axis=1, keepdims=True), 1e-9)
+    normals = scratch.ridge_side * np.stack([-tangents[:, 1], tangents[:, 0]], axis=1)
+    at_points = np.concatenate([normals[:1], normals[:-1] + normals[1:], normals[-1:]])
+    at_points /= np.maximum(np.linalg.norm(at_points, axis=1, keepdims=True), 1e-9)
+    ridge = points + RIDGE_OFFSET * half * at_points
+    starts = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(ridge, axis=0), axis=1))])
+    phase = math.fmod(53.0 * points[0, 0] + 29.0 * points[0, 1], 2.0 * math.pi)  # not the scratch's own edges
+    rows = [(*ridge[i], *ridge[i + 1], RIDGE_WIDTH * half, starts[i], RIDGE_RAGGEDNESS, phase)
+            for i in range(len(ridge) - 1)]
+    tip = points[-1] + 0.5 * half * (tangents[-1] + normals[-1])
+    rows.append((*tip, *tip, TIP_CLUMP * half, 0.0, 0.0, 0.0))
+    return np.array(rows, dtype=np.float64)
+
+
 class Sampling(Protocol):
     """Where a renderer evaluates the well content: an image of ``width`` x ``height`` points whose centres
     ``(x + 0.5, y + 0.5)`` map to plate millimetres by ``px_to_plate`` (and back by :meth:`project`).
@@ -658,6 +695,8 @@ class WellContent:
     rim : (H, W) float32, the relative density added along the plaques' outlines.
     plaque_ids : (H, W) uint16, ``p + 1`` inside plaque ``p``'s outline (scene order; later plaques on top).
     scratched : (H, W) float32, the share of the stain scraped off by scratches.
+    heaped : (H, W) float32, the relative density of the cells the scratches heaped up in ridges, laid over the
+        scrape (:func:`ridge_segments`).
     specks : (H, W) float32, the density added by dark specks.
     """
 
@@ -665,6 +704,7 @@ class WellContent:
     rim: np.ndarray
     plaque_ids: np.ndarray
     scratched: np.ndarray
+    heaped: np.ndarray
     specks: np.ndarray
 
 
@@ -680,7 +720,7 @@ def draw_well_content(
     walls' top edges at ``top_centres`` with ``top_radius``, for the plaque ids seen from above)."""
     shape = (grid.height, grid.width)
     content = WellContent(np.zeros(shape, np.float32), np.zeros(shape, np.float32), np.zeros(shape, np.uint16),
-                          np.zeros(shape, np.float32), np.zeros(shape, np.float32))
+                          np.zeros(shape, np.float32), np.zeros(shape, np.float32), np.zeros(shape, np.float32))
     pixel_mm = 1.0 / grid.px_per_mm
     if scene.plaques:
         plaques, fourier = plaque_table(scene, wells, top_centres)
@@ -707,6 +747,9 @@ def draw_well_content(
     if segments:
         _capsules(grid, np.array(segments), np.full(len(segments), art.scratch_clearing), content.scratched,
                   art.scratch_softness_mm)
+    if art.scratch_ridge > 0.0 and art.scratches:
+        ridges = np.concatenate([ridge_segments(scratch) for scratch in art.scratches])
+        _capsules(grid, ridges, np.full(len(ridges), art.scratch_ridge), content.heaped, art.scratch_softness_mm)
     if art.debris:
         rows, values = [], []
         for d in art.debris:
@@ -734,7 +777,7 @@ def _capsules(grid: Sampling, segments: np.ndarray, values: np.ndarray, out: np.
 
 @njit(cache=True, nogil=True, parallel=True, fastmath=True)
 def _bake_floor(texel_mm, a1x, a1y, pitch, rows, cols, radius, wells, stain, low_grid, fibre_grid, fine_tile,
-                mottle_tile, residual_tile, clearing, rim, scratched, specks, out):
+                mottle_tile, residual_tile, clearing, rim, scratched, heaped, specks, out):
     height, width = out.shape[0], out.shape[1]
     margin = 2.0 * texel_mm
     for y in prange(height):
@@ -754,7 +797,7 @@ def _bake_floor(texel_mm, a1x, a1y, pitch, rows, cols, radius, wells, stain, low
                 continue
             density, lysed = monolayer_density(u, v, du, dv, dist, radius, well, st, low_grid, fibre_grid, fine_tile,
                                                mottle_tile)
-            density, lysed = changed_density(density, lysed, u, v, well, st, clearing[y, x], rim[y, x], scratched[y, x],
+            density, lysed = changed_density(density, lysed, u, v, well, st, clearing[y, x], rim[y, x], scratched[y, x], heaped[y, x],
                                              specks[y, x], residual_tile)
             r, g, b = layer_transmittance(density, st, lysed, scratched[y, x])
             out[y, x, 0] = r
@@ -818,5 +861,5 @@ def floor_transmittance(scene: Scene, texels_per_mm: float, textures: SceneTextu
                 plate.well_radius_mm, well_table(wells, centres, centres, untinted, even, textures.well_offsets),
                 stain_table(scene, textures),
                 textures.low_grid, fibre_grid_or_empty(textures), textures.fine_tile, textures.mottle_tile,
-                textures.residual_tile, content.clearing, content.rim, content.scratched, content.specks, out)
+                textures.residual_tile, content.clearing, content.rim, content.scratched, content.heaped, content.specks, out)
     return out

@@ -291,13 +291,13 @@ def expose(x, y, width, height, value, channel_gain, f):
 @njit(cache=True, nogil=True, parallel=True, fastmath=True)
 def shade(
     hinv, frame, desk_rgb, panel, blots, wells, stain, relief_map, ink, texels_per_mm, low_grid, fibre_grid,
-    desk_grid, desk_cell_px, fine_tile, mottle_tile, residual_tile, clearing, rim, scratched, specks, gains, gamma_lut, out, wells_mask,
+    desk_grid, desk_cell_px, fine_tile, mottle_tile, residual_tile, clearing, rim, scratched, heaped, specks, gains, gamma_lut, out, wells_mask,
 ):
     """Shade every pixel (linear light, then display-encoded through ``gamma_lut``) and fill the well mask.
 
     ``frame`` is a one-row :data:`FRAME_DTYPE` array, ``wells`` and ``stain`` the appearance model's tables
     (:data:`~platesynth.render.appearance.WELL_DTYPE`, :data:`~platesynth.render.appearance.STAIN_DTYPE`);
-    ``clearing``, ``rim``, ``scratched`` and ``specks`` its :class:`~platesynth.render.appearance.WellContent` at the
+    ``clearing``, ``rim``, ``scratched``, ``heaped`` and ``specks`` its :class:`~platesynth.render.appearance.WellContent` at the
     pixels. ``relief_map`` (h, w) and ``ink`` (h, w, 3), or (1, 1, 3) for no ink, are plate-space textures.
     """
     height, width = out.shape[0], out.shape[1]
@@ -345,7 +345,7 @@ def shade(
                     density, lysed = appearance.monolayer_density(u, v, du, dv, dist, f.radius, well, st, low_grid,
                                                                   fibre_grid, fine_tile, mottle_tile)
                     density, lysed = appearance.changed_density(density, lysed, u, v, well, st, clearing[y, x],
-                                                                rim[y, x], scratched[y, x], specks[y, x], residual_tile)
+                                                                rim[y, x], scratched[y, x], heaped[y, x], specks[y, x], residual_tile)
                     layer_r, layer_g, layer_b = appearance.layer_transmittance(density, st, lysed, scratched[y, x])
                     layer_r = layer_r * disc + 1.0 - disc
                     layer_g = layer_g * disc + 1.0 - disc

@@ -94,9 +94,12 @@ class Stain(_Concrete):
     rim_mottle_mm: float = Field(2.0, description="width of the mottled band along the rim, mm")
     rim_mottle_side: float = Field(0.0, description="how one-sided the mottled band is, 0 (all around) to 1")
     rim_mottle_patches: float = Field(0.0, description="how patchy the mottled band is along the rim, 0 (even) to 1")
-    rim_mottle_angle_deg: float = Field(0.0, description="direction of the side where the band is strongest, degrees "
-                                        "(plate x axis 0, y axis 90)")
+    rim_mottle_angle_deg: float = Field(0.0, description="direction of the side the plate was tilted to, where the "
+                                        "band is strongest and the dye pooled, degrees (plate x axis 0, y axis 90)")
     meniscus: float = Field(0.0, description="extra stain density in a thin line along the rim, relative")
+    pooling: float = Field(0.0, description="extra stain density, relative, where the dye pooled toward the side of "
+                                            "rim_mottle_angle_deg: this times the square of the distance toward it "
+                                            "over the radius")
     lysed_density: float = Field(0.6, description="density a lysed well keeps where its remnant is full, relative")
     lysed_residue: float = Field(0.04, description="share of the layer a lysed well keeps everywhere (a pale film)")
     lysed_strands: float = Field(1.0, description="strength of the network of strands a lysed well keeps")
@@ -193,6 +196,8 @@ class Scratch(_Concrete):
     well: int = Field(description="id of the well holding it")
     points_mm: tuple[Vec2, ...] = Field(description="polyline in plate coordinates, mm")
     width_mm: float = Field(description="width, mm")
+    ridge_side: int = Field(1, description="the side of its centre line where the cells it scraped off heaped up "
+                                           "(+1 left, -1 right, looking along it; ``Artifacts.scratch_ridge``)")
 
 
 class MarkerStroke(_Concrete):
@@ -232,6 +237,8 @@ class Artifacts(_Concrete):
     scratch_softness_mm: float = Field(0.0, description="width over which the scratches' edges fade, mm")
     scratch_haze: float = Field(0.0, description="share of the light the scratched plastic scatters away, 0..1")
     scratch_heaps: float = Field(0.0, description="added stain density, relative, along the scratches' edges")
+    scratch_ridge: float = Field(0.0, description="added stain density, relative, of the ridge of cells heaped along "
+                                                  "one side of each scratch and the clump ahead of its end")
     marker: tuple[MarkerStroke, ...] = ()
     blots: tuple[Blot, ...] = ()
     debris: tuple[Debris, ...] = ()

@@ -361,11 +361,14 @@ def sample_scene(config: SceneConfig, seed: int) -> Scene:
                                      "rim_mottle_side": c.stain.draw("rim_mottle_side", rim_band),
                                      "meniscus": c.stain.draw("meniscus", rim_band),
                                      "rim_mottle_patches": c.stain.draw("rim_mottle_patches",
-                                                                        scene_rng(seed, "rim_patches"))})
+                                                                        scene_rng(seed, "rim_patches")),
+                                     "pooling": c.stain.draw("pooling", scene_rng(seed, "stain_pooling"))})
     plaques = _shrink_crowded(plaques, c.plaques.draw("max_coverage", rng), plate.well_radius_mm)
     wells, lace_plaques = _lace_lysed_wells(scene_rng(seed, "lysed_lace"), c.plaques, wells, len(plaques), radius, shared)
     plaques += lace_plaques
     scratches += _rim_tears(scene_rng(seed, "rim_tears"), a, wells, radius)
+    ridge_sides = scene_rng(seed, "scratch_ridge_sides")
+    scratches = [s.model_copy(update={"ridge_side": int(ridge_sides.choice((-1, 1)))}) for s in scratches]
     return Scene(
         seed=texture_seed,
         plate=plate,
@@ -380,7 +383,8 @@ def sample_scene(config: SceneConfig, seed: int) -> Scene:
                             scratch_softness_mm=c.artifacts.draw("scratch_softness_mm",
                                                                  scene_rng(seed, "scratch_softness")),
                             scratch_haze=c.artifacts.draw("scratch_haze", scene_rng(seed, "scratch_haze")),
-                            scratch_heaps=c.artifacts.draw("scratch_heaps", scene_rng(seed, "scratch_heaps"))),
+                            scratch_heaps=c.artifacts.draw("scratch_heaps", scene_rng(seed, "scratch_heaps")),
+                            scratch_ridge=c.artifacts.draw("scratch_ridge", scene_rng(seed, "scratch_ridge"))),
         background=background,
         lighting=lighting,
         camera=camera,
