@@ -19,6 +19,11 @@ sectors' standard deviation (how uneven the wall is around the well), and the fi
 along the well's outward direction, away from the image's centre (positive: brighter on the outward side), for the
 wells far from the image's centre (beyond 0.6 of its half-diagonal) and near it, in 8-bit levels.
 
+And each plate's one-sidedness: over its plain wells, the mean of each well's luminance difference, lower half minus
+upper half and right half minus left half of a ring (:data:`SIDED_RING` radii), over the ring's mean; the length of
+that mean vector (0 when the wells' darker sides point every way; PR8's photos are darker toward the bottom in every
+well, ``stain.pooling``), its median over the images.
+
 Run: ``python benchmarks/well_profile.py`` (``--preset P``, ``--images N``, ``--set name=value`` overrides).
 """
 
@@ -47,6 +52,8 @@ OFF_AXIS = 0.6
 """Rays every 3 degrees within this angle of each diagonal."""
 RINGS = (0.0, 0.3, 0.5, 0.7, 0.8, 0.85, 0.9, 0.93, 0.96)
 """Edges of the rings inside a plain well, in radii (the first ring is the centre the others are relative to)."""
+SIDED_RING = (0.7, 0.95)
+"""The ring of a plain well whose halves the one-sidedness compares, in radii."""
 
 
 def main(argv: list[str] | None = None) -> None:
@@ -132,6 +139,19 @@ def main(argv: list[str] | None = None) -> None:
             rows.append((levels.std(), harmonic, off_axis))
         return np.array(rows)
 
+    def one_sidedness(luminance: np.ndarray, discs) -> float:
+        """The length of the mean over ``discs`` of (lower - upper, right - left) halves of their rings, relative."""
+        yy, xx = np.mgrid[: luminance.shape[0], : luminance.shape[1]]
+        sides = []
+        for disc in discs:
+            dy, dx = yy - disc.cy, xx - disc.cx
+            radius = np.hypot(dy, dx) / disc.radius
+            ring = (radius >= SIDED_RING[0]) & (radius < SIDED_RING[1])
+            level = luminance[ring].mean()
+            sides.append(((luminance[ring & (dy > 0)].mean() - luminance[ring & (dy < 0)].mean()) / level,
+                          (luminance[ring & (dx > 0)].mean() - luminance[ring & (dx < 0)].mean()) / level))
+        return float(np.hypot(*np.mean(sides, axis=0)))
+
     def report_around(label: str, wells: np.ndarray) -> None:
         outer, inner = wells[:, 2] > OFF_AXIS, wells[:, 2] <= OFF_AXIS
         print(f"{label:24s} {len(wells):6d}  unevenness {np.median(wells[:, 0]):5.2f}  outward harmonic: outer wells "
@@ -191,6 +211,14 @@ def main(argv: list[str] | None = None) -> None:
           f"along the outward direction (8-bit levels; outer wells beyond {OFF_AXIS} of the half-diagonal)")
     for name, measured in sets:
         report_around(name, np.concatenate([around(m.luminance, m.discs) for m in measured]))
+
+    print(f"\n{'one-sidedness of':24s} {'images':>6s}  the length of the mean (lower - upper, right - left) of the "
+          f"plain wells' {SIDED_RING[0]}-{SIDED_RING[1]} radii rings, relative: median, 25th and 75th percentiles")
+    for name, measured in sets:
+        values = np.array([one_sidedness(m.luminance, [m.discs[i] for i in m.plain]) for m in measured
+                           if len(m.plain) >= 2])
+        print(f"{name:24s} {len(values):6d}  {np.median(values):.3f} ({np.percentile(values, 25):.3f}-"
+              f"{np.percentile(values, 75):.3f})")
 
 if __name__ == "__main__":
     main()

@@ -359,6 +359,30 @@ def test_a_patchy_mottled_band_comes_and_goes_along_the_rim(base_scene):
     assert np.all(patchy <= even + 1e-9) and patchy.max() > 0.8 * even.mean()
 
 
+def test_the_mottled_bands_patches_grow_with_its_grain(base_scene):
+    """``stain.rim_mottle_grain_mm`` is the cell of the patches' noise: three times the grain, patches three times as
+    long (the lag at which the paling's autocorrelation along a row of the band falls to a half), as pale."""
+    scene, well = base_scene
+    plain, distance, _ = _blue_density_by_place(scene, well, rim_mottle=0.0)
+    radius = scene.plate.well_radius_mm
+    band = distance < radius - 0.5  # a band 30 mm wide: the whole well but its rim, evenly mottled
+
+    def patches(grain_mm: float) -> tuple[float, float]:
+        """The half-correlation length of the paling along the rows (mm) and its mean."""
+        mottled, _, _ = _blue_density_by_place(scene, well, rim_mottle=0.5, rim_mottle_mm=30.0,
+                                                rim_mottle_grain_mm=grain_mm)
+        paling = np.full(plain.shape, np.nan)
+        paling[band] = 1.0 - mottled[band] / plain[band]
+        rows = [r[~np.isnan(r)] for r in paling if (~np.isnan(r)).sum() > 200]
+        lags = np.arange(1, 60)
+        correlation = [np.mean([np.corrcoef(r[:-lag], r[lag:])[0, 1] for r in rows]) for lag in lags]
+        return float(lags[np.argmax(np.array(correlation) < 0.5)] / TEXELS_PER_MM), float(np.nanmean(paling))
+
+    fine, coarse = patches(0.06), patches(0.18)
+    assert coarse[0] == pytest.approx(3.0 * fine[0], rel=0.25)  # 0.15 and 0.40 mm measured (in 0.05 mm steps)
+    assert coarse[1] == pytest.approx(fine[1], rel=0.2)  # 0.22 and 0.21
+
+
 def test_lysed_paleness_moves_a_lysed_wells_remnant_to_the_pale_colour(base_scene):
     scene, well = base_scene
     other = next(w for w in scene.wells if w.id != well.id and not w.emptied)
@@ -554,13 +578,13 @@ def test_pooling_thickens_each_well_toward_the_plates_tilt_only(base_scene):
     radius = scene.plate.well_radius_mm
     for well in (scene.wells[0], scene.wells[7]):
         x, y = well.center_mm
-        texel = lambda dx, dy: (int((y + dy * radius) * TEXELS_PER_MM), int((x + dx * radius) * TEXELS_PER_MM))
         for dy in (0.3, 0.6, 0.9):
-            p = (texel(0.0, dy)[0] + 0.5) / TEXELS_PER_MM - y
-            assert thick[texel(0.0, dy)] / plain[texel(0.0, dy)] == pytest.approx(1.0 + 0.5 * (p / radius) ** 2,
-                                                                                  rel=1e-4)
-            assert thick[texel(0.0, -dy)] == pytest.approx(plain[texel(0.0, -dy)], rel=1e-6)
-        assert thick[texel(0.9, 0.0)] == pytest.approx(plain[texel(0.9, 0.0)], rel=1e-3)
+            below, above = ((int((y + sign * dy * radius) * TEXELS_PER_MM), int(x * TEXELS_PER_MM)) for sign in (1, -1))
+            p = (below[0] + 0.5) / TEXELS_PER_MM - y
+            assert thick[below] / plain[below] == pytest.approx(1.0 + 0.5 * (p / radius) ** 2, rel=1e-4)
+            assert thick[above] == pytest.approx(plain[above], rel=1e-6)
+        across = int(y * TEXELS_PER_MM), int((x + 0.9 * radius) * TEXELS_PER_MM)
+        assert thick[across] == pytest.approx(plain[across], rel=1e-3)
 
 
 def test_lysed_speckle_is_finer_than_the_grain(base_scene):

@@ -35,7 +35,6 @@ from platesynth.render.textures import (
     FIBRE_CELL_MM,
     FINE_CELL_MM,
     FUZZ_CELL_MM,
-    MOTTLE_CELL_MM,
     RESIDUAL_CELL_MM,
     WALL_GLINT_HARMONICS,
     SceneTextures,
@@ -184,6 +183,7 @@ STAIN_DTYPE = np.dtype(
         ("rim_mottle_cos", np.float64),  # the direction of the side where the band is strongest
         ("rim_mottle_sin", np.float64),
         ("rim_mottle_patches", np.float64),
+        ("rim_mottle_grain_mm", np.float64),  # the patches' cell in the mottle tile
         ("meniscus", np.float64),
         ("lysed_density", np.float64),
         ("lysed_residue", np.float64),
@@ -290,7 +290,7 @@ def stain_table(scene: Scene, textures: SceneTextures) -> np.ndarray:
     table[0] = (stain.unevenness, textures.low_cell_mm, stain.centre_elongation, stain.rim_clearing_mm,
                 stain.translucency, stain.rim_mottle, stain.rim_mottle_mm, stain.rim_mottle_side,
                 math.cos(math.radians(stain.rim_mottle_angle_deg)), math.sin(math.radians(stain.rim_mottle_angle_deg)),
-                stain.rim_mottle_patches, stain.meniscus, stain.lysed_density, stain.lysed_residue, stain.lysed_strands,
+                stain.rim_mottle_patches, stain.rim_mottle_grain_mm, stain.meniscus, stain.lysed_density, stain.lysed_residue, stain.lysed_strands,
                 stain.lysed_grain, stain.lysed_speckle, stain.lysed_disc, stain.lysed_disc_radius, clump_level(stain.lysed_clumps), *absorbance,
                 *lysed_absorbance, scratch_shade(scene), scene.artifacts.scratch_heaps, scene.artifacts.scratch_clearing,
                 scene.plaque_look.residual_mottle,
@@ -369,7 +369,8 @@ def monolayer_density(u, v, du, dv, dist, radius, well, stain, low_grid, fibre_g
     density *= max(1.0 + DRYING_GAIN * well.drying_detail * fine, 0.0)
     if stain.rim_mottle > 0.0 and radius - dist < 4.0 * stain.rim_mottle_mm:
         # patches of paler, detached cells in a band along the rim
-        patch = tile_sample(mottle_tile, (u + well.noise_y) / MOTTLE_CELL_MM, (v + well.noise_x) / MOTTLE_CELL_MM)
+        grain = stain.rim_mottle_grain_mm
+        patch = tile_sample(mottle_tile, (u + well.noise_y) / grain, (v + well.noise_x) / grain)
         patch = clip01(0.5 + patch / (2.0 * MOTTLE_EDGE))
         band = math.exp(-max(radius - dist, 0.0) / stain.rim_mottle_mm)
         if stain.rim_mottle_side > 0.0 and dist > 0.0:  # strongest on one side, weakest on the other

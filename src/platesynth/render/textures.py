@@ -27,8 +27,6 @@ RESIDUAL_CELL_MM = 0.1
 """Cell of the stain left inside plaques (the residual tile)."""
 FIBRE_CELL_MM = 0.25
 """Cell of the strands left in lysed wells (the fibre grid)."""
-MOTTLE_CELL_MM = 0.06
-"""Cell of the patchy cells in the mottled band along a well's rim (the mottle tile)."""
 WELL_OFFSET_RANGE_MM = 100.0
 """Each well reads the periodic tiles shifted by its own offset, uniform in [0, this)."""
 WALL_GLINT_HARMONICS = 3

@@ -142,6 +142,9 @@ class StainConfig(Section):
     translucency: Dist = number([0.0, 0.008], 0.0, 1.0, "", "fraction of light passing un-absorbed")
     rim_mottle: Dist = number(0.0, 0.0, 1.0, "", "how much paler the patches of a mottled band along the rim are")
     rim_mottle_mm: Dist = number(2.0, 0.1, 10.0, "mm", "width of the mottled band along the rim")
+    rim_mottle_grain_mm: Dist = number(0.06, 0.02, 0.5, "mm", "cell of the noise whose upper half are the mottled "
+                                       "band's paler patches: patches about three cells across (Brisbane's photos "
+                                       "have flakes of 0.2-0.4 mm)")
     rim_mottle_side: Dist = number(
         0.0, 0.0, 1.0, "", "how one-sided the mottled band is: 0 even all around, 1 only on the side of each well that "
         "faces one direction of the plate (drawn per plate: the side toward which the plate was tilted to empty it)")

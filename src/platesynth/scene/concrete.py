@@ -92,6 +92,7 @@ class Stain(_Concrete):
     translucency: float = Field(description="fraction of light passing un-absorbed (gaps in the layer), 0..1")
     rim_mottle: float = Field(0.0, description="how much paler the patches of the mottled band along the rim are, 0..1")
     rim_mottle_mm: float = Field(2.0, description="width of the mottled band along the rim, mm")
+    rim_mottle_grain_mm: float = Field(0.06, description="cell of the noise of the mottled band's patches, mm")
     rim_mottle_side: float = Field(0.0, description="how one-sided the mottled band is, 0 (all around) to 1")
     rim_mottle_patches: float = Field(0.0, description="how patchy the mottled band is along the rim, 0 (even) to 1")
     rim_mottle_angle_deg: float = Field(0.0, description="direction of the side the plate was tilted to, where the "

@@ -362,7 +362,9 @@ def sample_scene(config: SceneConfig, seed: int) -> Scene:
                                      "meniscus": c.stain.draw("meniscus", rim_band),
                                      "rim_mottle_patches": c.stain.draw("rim_mottle_patches",
                                                                         scene_rng(seed, "rim_patches")),
-                                     "pooling": c.stain.draw("pooling", scene_rng(seed, "stain_pooling"))})
+                                     "pooling": c.stain.draw("pooling", scene_rng(seed, "stain_pooling")),
+                                     "rim_mottle_grain_mm": c.stain.draw("rim_mottle_grain_mm",
+                                                                         scene_rng(seed, "rim_mottle_grain"))})
     plaques = _shrink_crowded(plaques, c.plaques.draw("max_coverage", rng), plate.well_radius_mm)
     wells, lace_plaques = _lace_lysed_wells(scene_rng(seed, "lysed_lace"), c.plaques, wells, len(plaques), radius, shared)
     plaques += lace_plaques
