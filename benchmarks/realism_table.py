@@ -1,6 +1,6 @@
 """Realism of the raster renderer's presets against the real 12-well plate photos.
 
-Renders ``--count`` images per preset (seeds 0..count-1) into a temporary folder and prints, for each preset and
+Renders ``--count`` images per preset (seeds 0..count-1, or from ``--first-seed``) into a temporary folder and prints, for each preset and
 for the real set, the AlexNet Fréchet distance and kernel distance to the real photos, the naturalness factor and
 dNf = |nf_real - nf|, the pixel entropy (size-matched: mean over subsets as large as the smaller set, since entropy
 grows with the number of images) and the brightness variability, all from :func:`platesynth.metrics.dataset_metrics`;
@@ -36,6 +36,8 @@ ROOT = Path(__file__).resolve().parents[1]
 SHARED = Path(os.environ.get("PLATESYNTH_SHARED", ROOT.parent / "shared"))
 COLUMNS = ("fd_alexnet", "kid_alexnet", "nf", "dnf", "entropy", "brightness_var", "fd_wells", "kid_wells",
            "nn_acc_wells", "dnf_wells", "spec_wells", "spec_w_plaques")
+SEED_STRIDE = 1000
+"""``--repeats`` draws its sets of scenes this many seeds apart."""
 
 
 def _size(text: str) -> tuple[int, int]:
@@ -62,7 +64,7 @@ def _resized_reference(source: Path, size: tuple[int, int], target: Path) -> Pat
     return target
 
 
-def _render_preset(preset: str, count: int, size: tuple[int, int], compare: tuple[int, int] | None, folder: Path):
+def _render_preset(preset: str, seeds: range, size: tuple[int, int], compare: tuple[int, int] | None, folder: Path):
     """Render into a dataset layout (images/, masks/wells/, masks/plaques/, params/), masks resized like the images."""
     import numpy as np
     from PIL import Image
@@ -79,7 +81,7 @@ def _render_preset(preset: str, count: int, size: tuple[int, int], compare: tupl
 
     config = load_config(path=preset) if preset.endswith(".yaml") else load_config(preset)
     start = time.perf_counter()
-    for seed in range(count):
+    for seed in seeds:
         scene = sample_scene(config, seed)
         result = render(scene, size)
         item = item_paths(folder, f"{Path(preset).stem}_{seed:04d}")
@@ -95,6 +97,11 @@ def main(argv: list[str] | None = None) -> None:
     """Print the realism table."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--count", type=int, default=100, help="images per preset")
+    parser.add_argument("--first-seed", type=int, default=0,
+                        help="seeds first..first+count-1 (another set of scenes: how far the figures move by chance)")
+    parser.add_argument("--repeats", type=int, default=1,
+                        help=f"sets of scenes, each {SEED_STRIDE} seeds after the last: the table's mean over them, "
+                             "and each preset's difference to the first, set by set (mean and sd)")
     parser.add_argument("--size", type=_size, default=(1216, 944), help="render size WIDTHxHEIGHT")
     parser.add_argument("--presets", default="high,medium,low",
                         help="comma-separated preset names or configuration files (*.yaml, labelled by their stem)")
@@ -107,6 +114,8 @@ def main(argv: list[str] | None = None) -> None:
     if not args.reference.is_dir():
         sys.exit(f"{args.reference}: no such folder (set PLATESYNTH_SHARED to the shared material)")
     os.environ.setdefault("PLATESYNTH_WEIGHTS_DIR", str(SHARED / "weights"))
+
+    import numpy as np
 
     from platesynth.io import list_images
     from platesynth.metrics import (
@@ -129,53 +138,64 @@ def main(argv: list[str] | None = None) -> None:
         n_real = len(list_images(reference))
         extractor = get_feature_extractor("alexnet")
         real_wells = collect_well_crops(reference, extractor=extractor)  # once: the same for every preset
-        rows: dict[str, dict[str, float]] = {}
+        rows: dict[str, list[dict[str, float]]] = {}
         real_row: dict[str, float] = {}
-        for preset in args.presets.split(","):
-            folder = work / Path(preset).stem
-            seconds = _render_preset(preset, args.count, args.size, args.compare_size, folder)
-            metrics = dataset_metrics(folder / "images", reference)
-            wells = compare_well_crops(collect_well_crops(folder, extractor=extractor), real_wells)
-            subset = min(args.count, n_real)
-            shape = tuple(metrics["size"])
-            rows[Path(preset).stem] = {
-                "fd_alexnet": metrics["fd_alexnet"],
-                "kid_alexnet": metrics["kid_alexnet"],
-                "nf": metrics["nf_mean"],
-                "dnf": metrics["dnf"],
-                "entropy": size_matched_entropy(list_images(folder / "images"), subset, size=shape),
-                "brightness_var": metrics["brightness_variability"],
-                "fd_wells": wells["fd_wells"],
-                "kid_wells": wells["kid_wells"],
-                "nn_acc_wells": wells["nn_accuracy_wells"],
-                "dnf_wells": wells["dnf_wells"],
-                "spec_wells": wells["spectrum_distance_wells"],
-                "spec_w_plaques": wells["spectrum_distance_wells_with_plaques"],
-            }
-            real_row = {
-                "fd_alexnet": 0.0,
-                "kid_alexnet": 0.0,
-                "nf": metrics["nf_mean_reference"],
-                "dnf": 0.0,
-                "entropy": size_matched_entropy(list_images(reference), subset, size=shape),
-                "brightness_var": metrics["brightness_variability_reference"],
-                "fd_wells": 0.0,
-                "kid_wells": 0.0,
-                "nn_acc_wells": float("nan"),  # not measured: a set against itself
-                "dnf_wells": 0.0,
-                "spec_wells": 0.0,
-                "spec_w_plaques": 0.0,
-            }
-            print(f"[{preset}: {args.count} renders at {args.size[0]}x{args.size[1]} in {seconds:.0f} s; "
-                  f"{wells['n_wells']} wells against {wells['n_wells_reference']} real ones]", file=sys.stderr)
+        for repeat in range(args.repeats):
+            seeds = range(args.first_seed + repeat * SEED_STRIDE, args.first_seed + repeat * SEED_STRIDE + args.count)
+            for preset in args.presets.split(","):
+                folder = work / f"{Path(preset).stem}-{repeat}"
+                seconds = _render_preset(preset, seeds, args.size, args.compare_size, folder)
+                metrics = dataset_metrics(folder / "images", reference)
+                wells = compare_well_crops(collect_well_crops(folder, extractor=extractor), real_wells)
+                subset = min(args.count, n_real)
+                shape = tuple(metrics["size"])
+                rows.setdefault(Path(preset).stem, []).append({
+                    "fd_alexnet": metrics["fd_alexnet"],
+                    "kid_alexnet": metrics["kid_alexnet"],
+                    "nf": metrics["nf_mean"],
+                    "dnf": metrics["dnf"],
+                    "entropy": size_matched_entropy(list_images(folder / "images"), subset, size=shape),
+                    "brightness_var": metrics["brightness_variability"],
+                    "fd_wells": wells["fd_wells"],
+                    "kid_wells": wells["kid_wells"],
+                    "nn_acc_wells": wells["nn_accuracy_wells"],
+                    "dnf_wells": wells["dnf_wells"],
+                    "spec_wells": wells["spectrum_distance_wells"],
+                    "spec_w_plaques": wells["spectrum_distance_wells_with_plaques"],
+                })
+                real_row = {
+                    "fd_alexnet": 0.0,
+                    "kid_alexnet": 0.0,
+                    "nf": metrics["nf_mean_reference"],
+                    "dnf": 0.0,
+                    "entropy": size_matched_entropy(list_images(reference), subset, size=shape),
+                    "brightness_var": metrics["brightness_variability_reference"],
+                    "fd_wells": 0.0,
+                    "kid_wells": 0.0,
+                    "nn_acc_wells": float("nan"),  # not measured: a set against itself
+                    "dnf_wells": 0.0,
+                    "spec_wells": 0.0,
+                    "spec_w_plaques": 0.0,
+                }
+                print(f"[{preset}, seeds {seeds.start}-{seeds.stop - 1}: {args.count} renders at "
+                      f"{args.size[0]}x{args.size[1]} in {seconds:.0f} s; {wells['n_wells']} wells against "
+                      f"{wells['n_wells_reference']} real ones]", file=sys.stderr)
     compared = f", both resized to {args.compare_size[0]}x{args.compare_size[1]}" if args.compare_size else ""
+    sets = f"; the mean of {args.repeats} sets of scenes" if args.repeats > 1 else ""
     print(f"realism against {args.reference} ({n_real} images); {args.count} renders per preset at "
           f"{args.size[0]}x{args.size[1]}{compared}; entropy over subsets of {min(args.count, n_real)} images; "
-          "well crops 128x128")
+          f"well crops 128x128{sets}")
     print(f"{'set':10s}" + "".join(f"{c:>16s}" for c in COLUMNS))
-    for name, row in [*rows.items(), ("real", real_row)]:
-        print(f"{name:10s}" + "".join(f"{row[c]:16.4f}" for c in COLUMNS))
-
+    for name, measured in [*rows.items(), ("real", [real_row])]:
+        print(f"{name:10s}" + "".join(f"{np.mean([row[c] for row in measured]):16.4f}" for c in COLUMNS))
+    if args.repeats > 1 and len(rows) > 1:
+        first, *others = rows
+        print(f"\neach preset minus {first}, scene set by scene set: mean and sd over the {args.repeats} sets")
+        print(f"{'set':10s}" + "".join(f"{c:>16s}" for c in COLUMNS))
+        for name in others:
+            differences = np.array([[row[c] - base[c] for c in COLUMNS] for row, base in zip(rows[name], rows[first])])
+            print(f"{name:10s}" + "".join(f"{m:+9.3f} ±{sd:5.2f}" for m, sd in zip(differences.mean(axis=0),
+                                                                                  differences.std(axis=0, ddof=1))))
 
 if __name__ == "__main__":
     main()
