@@ -93,6 +93,20 @@ def _render_preset(preset: str, seeds: range, size: tuple[int, int], compare: tu
     return time.perf_counter() - start
 
 
+def paired_differences(rows: dict[str, list[dict[str, float]]]) -> dict[str, tuple]:
+    """Each preset's :data:`COLUMNS` minus the first preset's, scene set by scene set (``rows[name][k]`` the row of
+    set ``k``): ``{name: (mean, sd)}`` over the sets, arrays in :data:`COLUMNS` order, for every preset but the
+    first (sd with one degree of freedom: nan for one set)."""
+    import numpy as np
+
+    first, *others = rows
+    differences = {name: np.array([[row[c] - base[c] for c in COLUMNS] for row, base in zip(rows[name], rows[first],
+                                                                                            strict=True)])
+                   for name in others}
+    return {name: (d.mean(axis=0), d.std(axis=0, ddof=1) if len(d) > 1 else np.full(len(COLUMNS), np.nan))
+            for name, d in differences.items()}
+
+
 def main(argv: list[str] | None = None) -> None:
     """Print the realism table."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -189,13 +203,11 @@ def main(argv: list[str] | None = None) -> None:
     for name, measured in [*rows.items(), ("real", [real_row])]:
         print(f"{name:10s}" + "".join(f"{np.mean([row[c] for row in measured]):16.4f}" for c in COLUMNS))
     if args.repeats > 1 and len(rows) > 1:
-        first, *others = rows
+        first = next(iter(rows))
         print(f"\neach preset minus {first}, scene set by scene set: mean and sd over the {args.repeats} sets")
         print(f"{'set':10s}" + "".join(f"{c:>16s}" for c in COLUMNS))
-        for name in others:
-            differences = np.array([[row[c] - base[c] for c in COLUMNS] for row, base in zip(rows[name], rows[first])])
-            print(f"{name:10s}" + "".join(f"{m:+9.3f} ±{sd:5.2f}" for m, sd in zip(differences.mean(axis=0),
-                                                                                  differences.std(axis=0, ddof=1))))
+        for name, (mean, sd) in paired_differences(rows).items():
+            print(f"{name:10s}" + "".join(f"{m:+9.3f} ±{d:5.2f}" for m, d in zip(mean, sd)))
 
 if __name__ == "__main__":
     main()
