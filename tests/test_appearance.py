@@ -243,7 +243,8 @@ def _texel_places(shape: tuple[int, ...], well) -> tuple[np.ndarray, np.ndarray]
 
 def test_lysed_disc_gathers_the_remnant_in_the_middle_of_the_well(base_scene):
     scene, well = base_scene
-    lysed = one_lysed_well(scene, well)
+    lysed = one_lysed_well(scene, well)  # a thin film everywhere (lysed_residue), whatever the preset draws
+    lysed = lysed.model_copy(update={"stain": lysed.stain.model_copy(update={"lysed_residue": 0.15})})
     radius = scene.plate.well_radius_mm
 
     def density(**stain) -> tuple[float, float]:

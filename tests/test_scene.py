@@ -49,7 +49,7 @@ def test_presets_load_and_sample_json_roundtrip(preset):
 # here changes every dataset rendered from these presets). Update only for a deliberate change of the sampling.
 SCENE_SHA256_SEED3 = {
     "diverse": "97ddb681b7314dd37fecf5901a4b1b14bc07cef2521fdf535e12afa56908400b",
-    "high": "146f5029c160d17824f6e4d1f28b1d78865dea7108668a2210df681df6a9d44c",
+    "high": "b304b46d94e8a1d7a078ad454fa95e0bab48ff120427257eaac7d7c0c56f7f20",
     "lightbox12": "e62efa5af1ca8f4aec7eb0f708fbb46e51239cfeda7fa6a48ecd1b8c3c0d74ec",
     "low": "90981c7ba6d9098a7f7fe1ee23b003c60d115983f5194551c750a205e832e519",
     "medium": "027c6fd60d0cebc619accddaf2830360639994f5a9d384736f2bcddd1299417f",
