@@ -200,8 +200,6 @@ STAIN_DTYPE = np.dtype(
         ("lysed_absorbance_g", np.float64),
         ("lysed_absorbance_b", np.float64),
         ("scratch_shade", np.float64),  # light the scratched plastic loses per unit of scraped stain
-        ("scratch_heap", np.float64),  # added density, relative, of the cells heaped along a scratch's edges
-        ("scratch_full", np.float64),  # the scratched value where a scratch covers a pixel (its clearing)
         ("residual_mottle", np.float64),  # the plaque look's unevenness of the stain left inside plaques
         ("residual_tint", np.float64),  # and the share of it in the lysed colour
         ("pooling", np.float64),  # the dye pooled toward the side of rim_mottle_cos/sin
@@ -292,7 +290,7 @@ def stain_table(scene: Scene, textures: SceneTextures) -> np.ndarray:
                 math.cos(math.radians(stain.rim_mottle_angle_deg)), math.sin(math.radians(stain.rim_mottle_angle_deg)),
                 stain.rim_mottle_patches, stain.rim_mottle_grain_mm, stain.meniscus, stain.lysed_density, stain.lysed_residue, stain.lysed_strands,
                 stain.lysed_grain, stain.lysed_speckle, stain.lysed_disc, stain.lysed_disc_radius, clump_level(stain.lysed_clumps), *absorbance,
-                *lysed_absorbance, scratch_shade(scene), scene.artifacts.scratch_heaps, scene.artifacts.scratch_clearing,
+                *lysed_absorbance, scratch_shade(scene),
                 scene.plaque_look.residual_mottle,
                 scene.plaque_look.residual_tint, stain.pooling)
     return table
@@ -430,9 +428,8 @@ def changed_density(density, lysed, u, v, well, stain, clearing, rim, scratched,
     """``density`` cleared by plaques (``clearing`` 0..1, with the residual stain left inside, uneven by the plate's
     ``stain.residual_mottle`` and taking the lysed colour by ``stain.residual_tint``), thickened along
     their rims (``rim``, relative), scraped by scratches (``scratched`` 0..1), thickened where the scraped cells
-    heaped up: along the scratches' edges (``stain.scratch_heap``, relative, most where a scratch covers half a
-    pixel) and in their ridges (``heaped``, relative, laid over the scrape), and darkened by specks (``speck``, added
-    density)."""
+    heaped up (``heaped``, relative, laid over the scrape: :attr:`WellContent.heaped`) and darkened by specks
+    (``speck``, added density)."""
     if clearing > 0.0:
         residual = tile_sample(residual_tile, (u + well.noise_y) / RESIDUAL_CELL_MM, (v + well.noise_x) / RESIDUAL_CELL_MM)
         residual = min(max(RESIDUAL_MEAN + stain.residual_mottle * residual, 0.0), 1.0)
@@ -440,9 +437,6 @@ def changed_density(density, lysed, u, v, well, stain, clearing, rim, scratched,
         lysed += (1.0 - lysed) * stain.residual_tint * clearing
     if rim > 0.0:
         density *= 1.0 + rim
-    if scratched > 0.0 and stain.scratch_heap > 0.0:
-        cover = min(scratched / stain.scratch_full, 1.0)
-        heaped += stain.scratch_heap * 4.0 * cover * (1.0 - cover)
     return density * (1.0 - scratched + heaped) + speck, lysed
 
 
@@ -696,8 +690,9 @@ class WellContent:
     rim : (H, W) float32, the relative density added along the plaques' outlines.
     plaque_ids : (H, W) uint16, ``p + 1`` inside plaque ``p``'s outline (scene order; later plaques on top).
     scratched : (H, W) float32, the share of the stain scraped off by scratches.
-    heaped : (H, W) float32, the relative density of the cells the scratches heaped up in ridges, laid over the
-        scrape (:func:`ridge_segments`).
+    heaped : (H, W) float32, the relative density of the cells the scratches heaped up, laid over the scrape:
+        along their edges (``artifacts.scratch_heaps`` times ``4 c (1 - c)`` where a scratch covers the share ``c``)
+        and in their ridges (:func:`ridge_segments`).
     specks : (H, W) float32, the density added by dark specks.
     """
 
@@ -748,6 +743,9 @@ def draw_well_content(
     if segments:
         _capsules(grid, np.array(segments), np.full(len(segments), art.scratch_clearing), content.scratched,
                   art.scratch_softness_mm)
+        if art.scratch_heaps > 0.0 and art.scratch_clearing > 0.0:  # most where a scratch covers half a texel
+            cover = np.minimum(content.scratched / np.float32(art.scratch_clearing), np.float32(1.0))
+            content.heaped[...] += np.float32(art.scratch_heaps) * 4.0 * cover * (1.0 - cover)
     if art.scratch_ridge > 0.0 and art.scratches:
         ridges = np.concatenate([ridge_segments(scratch) for scratch in art.scratches])
         _capsules(grid, ridges, np.full(len(ridges), art.scratch_ridge), content.heaped, art.scratch_softness_mm)
