@@ -1,7 +1,7 @@
 """Realism of the raster renderer's presets against the real 12-well plate photos.
 
-Renders ``--count`` images per preset (seeds 0..count-1, or from ``--first-seed``) into a temporary folder and prints, for each preset and
-for the real set, the AlexNet Fréchet distance and kernel distance to the real photos, the naturalness factor and
+Renders ``--count`` images per preset (seeds 0..count-1, or from ``--first-seed``) into a temporary folder and
+prints, for each preset and for the real set, the AlexNet Fréchet distance and kernel distance to the real photos, the naturalness factor and
 dNf = |nf_real - nf|, the pixel entropy (size-matched: mean over subsets as large as the smaller set, since entropy
 grows with the number of images) and the brightness variability, all from :func:`platesynth.metrics.dataset_metrics`;
 then the well-crop metrics of :mod:`platesynth.metrics.wells` (wells of the renders from their true masks, wells of
@@ -177,7 +177,7 @@ def main(argv: list[str] | None = None) -> None:
                     "spec_wells": wells["spectrum_distance_wells"],
                     "spec_w_plaques": wells["spectrum_distance_wells_with_plaques"],
                 })
-                real_row = {
+                real_row = real_row or {  # the photos' own row: the same for every preset and set of scenes
                     "fd_alexnet": 0.0,
                     "kid_alexnet": 0.0,
                     "nf": metrics["nf_mean_reference"],

@@ -154,7 +154,7 @@ class StainConfig(Section):
     meniscus: Dist = number(0.0, 0.0, 5.0, "", "extra stain density, relative, in a thin dark line along the rim where "
                             "the meniscus of the stain left more dye")
     pooling: Dist = number(0.0, 0.0, 1.0, "", "extra stain density, relative, where the dye pooled in each well toward "
-                           "the side the plate was tilted to (that of rim_mottle_side, drawn per plate): this times "
+                           "the side the plate was tilted to (rim_mottle_side's, drawn per plate): this times "
                            "the square of the distance toward that side over the radius, so most near that rim "
                            "(the photos' wells are darker on one side, the same for every well of a plate)")
     lysed_density: Dist = number(0.6, 0.0, 2.0, "", "density a lysed well keeps where its remnant is full, relative")
@@ -269,9 +269,9 @@ class ArtifactsConfig(Section):
     scratch_heaps: Dist = number(0.0, 0.0, 3.0, "", "extra stain density, relative, along the edges of the plate's "
                                  "scratches, where the cells they scraped off heaped up: thin dark margins (the photos' "
                                  "scrapes are white strips edged in dark lines; 0: none)")
-    scratch_ridge: Dist = number(0.0, 0.0, 3.0, "", "extra stain density, relative, of the ridge of cells each of the "
-                                 "plate's scratches heaped up along one side (its side drawn per scratch) and of the "
-                                 "clump it pushed ahead of its end: a dark sliver beside a white scrape (0: none)")
+    scratch_ridge: Dist = number(0.0, 0.0, 3.0, "", "extra stain density, relative, of the cells each of the plate's "
+                                 "scratches rolled up: ragged flaps inside one of its edges (its side drawn per "
+                                 "scratch) and a clump beside its end, dark on a white scrape (0: none)")
     rim_tears: Dist = number(0.0, 0.0, 5.0, "per well",
                              "mean number of tears per well: short, wide strips where the layer came off at the rim "
                              "(a pipette tip or the aspiration, anywhere around the well), drawn as the plate's "

@@ -238,8 +238,8 @@ class Artifacts(_Concrete):
     scratch_softness_mm: float = Field(0.0, description="width over which the scratches' edges fade, mm")
     scratch_haze: float = Field(0.0, description="share of the light the scratched plastic scatters away, 0..1")
     scratch_heaps: float = Field(0.0, description="added stain density, relative, along the scratches' edges")
-    scratch_ridge: float = Field(0.0, description="added stain density, relative, of the ridge of cells heaped along "
-                                                  "one side of each scratch and the clump ahead of its end")
+    scratch_ridge: float = Field(0.0, description="added stain density, relative, of the flaps of cells rolled up "
+                                                  "inside one edge of each scratch and the clump beside its end")
     marker: tuple[MarkerStroke, ...] = ()
     blots: tuple[Blot, ...] = ()
     debris: tuple[Debris, ...] = ()
