@@ -64,6 +64,31 @@ def test_halo_clears_beyond_the_edge(base_scene):
     assert clearing[outside].mean() == pytest.approx(0.3 * np.exp(-0.55 / 0.5), abs=0.02)
 
 
+def test_edge_floor_widens_a_small_plaques_edge_only(base_scene):
+    """``plaque_look.edge_floor_mm``: a plaque's edge ramp is the wider of softness times its radius and this floor,
+    so a small plaque's edge widens to it and a large one's, already wider, stays; the outline (and the plaque
+    masks) stay where they were."""
+    scene, well = base_scene
+    look = PlaqueLook(fray=0.0, centre_residual=0.0)
+
+    def ramp_width(radius_mm: float, floor_mm: float) -> float:
+        plaque = scene.plaques[0].model_copy(update={"radius_mm": radius_mm})
+        small = scene.model_copy(update={"plaques": (plaque,)})
+        distance, clearing, _ = clearing_profile(small, well, look.model_copy(update={"edge_floor_mm": floor_mm}))
+        partly = (clearing > 0.1) & (clearing < 0.9)
+        return float(np.ptp(distance[partly]))
+
+    # radius 0.3 mm, softness 0.2: a 0.06 mm edge, about a texel; a floor of 0.3 mm widens it several-fold
+    assert ramp_width(0.3, 0.0) < 0.15
+    assert ramp_width(0.3, 0.3) > 3 * ramp_width(0.3, 0.0)
+    # radius 2 mm: its 0.4 mm edge is wider than the floor, which changes nothing
+    assert ramp_width(2.0, 0.3) == ramp_width(2.0, 0.0)
+    table, _ = appearance.plaque_table(
+        scene.model_copy(update={"plaque_look": look.model_copy(update={"edge_floor_mm": 0.3})}),
+        appearance.wells_by_grid(scene), np.array([w.center_mm for w in appearance.wells_by_grid(scene)]))
+    assert table["edge_width"][0] == pytest.approx(0.3) and table["radius"][0] == 1.0
+
+
 def test_centre_residual_makes_a_paler_centre(base_scene):
     scene, well = base_scene
     distance, clearing, _ = clearing_profile(scene, well, PlaqueLook(fray=0.0, centre_residual=0.4))

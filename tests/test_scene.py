@@ -454,6 +454,7 @@ def test_lysed_paleness_draws_the_remnants_colour_from_the_pale_palette_and_noth
     ("plaque_look", {"plaques.lumps": [0.05, 0.1]}, {"plaques.lumps": 0.0}),
     ("plaque_look", {"plaques.residual_mottle": [0.1, 0.2], "plaques.residual_tint": [0.5, 1.0]},
      {"plaques.residual_mottle": 0.03, "plaques.residual_tint": 0.0}),
+    ("plaque_look", {"plaques.edge_floor_mm": [0.2, 0.35]}, {"plaques.edge_floor_mm": 0.0}),
     ("stain", {"stain.lysed_speckle": [0.3, 0.6]}, {"stain.lysed_speckle": 0.0}),
     ("post", {"post.sharpen_luma": [0.5, 1.0]}, {"post.sharpen_luma": 0.0}),
     ("plate_look", {"plate.top_edge_blur_mm": [0.2, 0.6]}, {"plate.top_edge_blur_mm": 0.0}),

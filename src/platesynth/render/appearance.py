@@ -212,7 +212,7 @@ PLAQUE_DTYPE = np.dtype(
         ("cx", np.float64),
         ("cy", np.float64),
         ("radius", np.float64),
-        ("edge_width", np.float64),  # softness * radius (mm)
+        ("edge_width", np.float64),  # softness * radius, at least plaque_look.edge_floor_mm (mm)
         ("clearness", np.float64),
         ("well_cx", np.float64),  # the plaque's well: centre, radius and top edge (ids stay inside it)
         ("well_cy", np.float64),
@@ -317,13 +317,14 @@ def stain_absorbance(stain: Stain) -> np.ndarray:
 def plaque_table(scene: Scene, wells: list[Well], top_centres: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The scene's plaques as :data:`PLAQUE_DTYPE` rows and their outline harmonics ``(n, k, 2)`` (k + 2)."""
     index_of_well = {w.id: i for i, w in enumerate(wells)}
+    edge_floor = scene.plaque_look.edge_floor_mm
     table = np.zeros(len(scene.plaques), dtype=PLAQUE_DTYPE)
     for i, p in enumerate(scene.plaques):
         k = index_of_well.get(p.well)
         if k is None:
             raise ParameterError(f"plaque {p.id} lies in well {p.well}, which the scene does not have")
         w = wells[k]
-        table[i] = (*p.center_mm, p.radius_mm, p.softness * p.radius_mm, p.clearness, *w.center_mm,
+        table[i] = (*p.center_mm, p.radius_mm, max(p.softness * p.radius_mm, edge_floor), p.clearness, *w.center_mm,
                     scene.plate.well_radius_mm, *top_centres[k])
     n_harmonics = max(1, max((len(p.fourier) for p in scene.plaques), default=1))
     fourier = np.zeros((len(scene.plaques), n_harmonics, 2), dtype=np.float64)

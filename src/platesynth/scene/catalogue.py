@@ -235,6 +235,9 @@ class PlaquesConfig(Section):
     residual_tint: Dist = number(0.0, 0.0, 1.0, "", "share of the stain left inside a plaque that takes the colour of "
                                  "what a lysed well keeps (stain.lysed_paleness: a paler, greyer, bluer lilac than the "
                                  "intact layer's; 0: the layer's colour)")
+    edge_floor_mm: Dist = number(0.0, 0.0, 1.0, "mm", "narrowest fuzzy edge of a plaque: a small plaque's edge keeps "
+                                 "at least this width, where softness times its radius is narrower (the photos' small "
+                                 "plaques are blurred spots, not crisp dots; 0: softness times the radius alone)")
     halo: Dist = number(0.0, 0.0, 1.0, "", "clearing of the soft halo just outside a plaque's outline")
     halo_width: Dist = number(0.5, 0.01, 3.0, "", "reach of the halo beyond the outline, fraction of the radius")
     rim: Dist = number(0.0, 0.0, 3.0, "", "extra stain density along a plaque's outline (a thin darker rim)")

@@ -186,6 +186,8 @@ class PlaqueLook(_Concrete):
                                    "about a tenth of a millimetre")
     residual_tint: float = Field(0.0, description="share of the stain left inside a plaque in the colour of what a "
                                  "lysed well keeps")
+    edge_floor_mm: float = Field(0.0, description="narrowest fuzzy edge of any plaque, mm (a plaque's edge is the "
+                                 "wider of this and its softness times its radius)")
     halo: float = Field(0.0, description="clearing of the soft halo just outside a plaque's outline")
     halo_width: float = Field(0.5, description="reach of the halo beyond the outline, share of the radius")
     rim: float = Field(0.0, description="extra stain density on a thin band along a plaque's outline (a darker rim)")

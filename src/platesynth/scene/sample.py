@@ -42,7 +42,7 @@ from platesynth.scene.streams import scene_rng
 STAIN_DRAWN_LAST = ("rim_mottle", "rim_mottle_mm", "lysed_density", "lysed_residue", "lysed_strands", "lysed_grain")
 """Stain parameters drawn after all others (added later; drawing them earlier would change every scene)."""
 PLAQUE_LOOK_OWN_STREAM = {"lumps": "plaque_lumps", "residual_mottle": "plaque_residual_mottle",
-                          "residual_tint": "plaque_residual_tint"}
+                          "residual_tint": "plaque_residual_tint", "edge_floor_mm": "plaque_edge_floor"}
 """Fields of the plaque look drawn from a random stream of their own, and its name (added later: every other draw
 stays)."""
 SBS_LENGTH_MM, SBS_WIDTH_MM = 127.76, 85.48

@@ -19,7 +19,8 @@ STREAMS = ("well_offsets", "unevenness", "fibres", "desk", "fine", "residual", "
            "rim_patches", "label_place", "crescent_veil",
            "wall_lines", "wall_highlights", "plaque_residual_mottle", "plaque_residual_tint",
            "lysed_lace", "black_level", "rim_tears", "scratch_heaps",
-           "scratch_ridge", "scratch_ridge_sides", "stain_pooling", "rim_mottle_grain")
+           "scratch_ridge", "scratch_ridge_sides", "stain_pooling", "rim_mottle_grain",
+           "plaque_edge_floor")
 """The random streams of a scene's seed, in the order they are spawned (append new ones at the end)."""
 
 
