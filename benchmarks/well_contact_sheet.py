@@ -8,7 +8,8 @@ tiles are shuffled (seeded) into one PNG; the key (which tile is real) is writte
 person can look first and check after.
 
 Run: ``python benchmarks/well_contact_sheet.py --out sheet.png`` (``--preset high``, ``--config look.yaml`` over it,
-``--wells 24`` of each kind, ``--split fit|check|all``, ``--tile 160``). A judge's answers, one line per tile in the
+``--wells 24`` of each kind, ``--split fit|check|all``, ``--tile 160``, ``--first-scene 20000`` for renders of other
+scenes: by default every sheet draws its renders from the scenes 10000, 10001, ...). A judge's answers, one line per tile in the
 key's form (``row 0, column 3: real``), are scored against the key with ``--score ANSWERS.txt --out sheet.png``.
 """
 
@@ -52,7 +53,9 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--wells", type=int, default=24, help="wells of each kind")
     parser.add_argument("--split", choices=("all", "fit", "check"), default="fit")
     parser.add_argument("--tile", type=int, default=160, help="tile side in pixels")
-    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--seed", type=int, default=0, help="seed of the choice of photos, wells and their order")
+    parser.add_argument("--first-scene", type=int, default=10_000,
+                        help="seed of the first rendered scene (the renders are of scenes FIRST, FIRST + 1, ...)")
     parser.add_argument("--score", type=Path, help="a judge's answers to score against OUT's key (writes nothing)")
     args = parser.parse_args(argv)
     if args.score:
@@ -83,7 +86,7 @@ def main(argv: list[str] | None = None) -> None:
     config = load_config(args.preset, path=args.config)
     seed = 0
     while len(synthetic) < args.wells:
-        scene = sample_scene(config, 10_000 + seed)
+        scene = sample_scene(config, args.first_scene + seed)
         seed += 1
         image = render_raster(scene, (1216, 944)).image
         discs = fit_plate_grid(image, (scene.plate.rows, scene.plate.cols))
