@@ -48,11 +48,11 @@ def test_presets_load_and_sample_json_roundtrip(preset):
 # sha256 of sample_scene(load_config(preset), 3).model_dump_json(): sampling must not change without intent (a change
 # here changes every dataset rendered from these presets). Update only for a deliberate change of the sampling.
 SCENE_SHA256_SEED3 = {
-    "diverse": "97ddb681b7314dd37fecf5901a4b1b14bc07cef2521fdf535e12afa56908400b",
-    "high": "b304b46d94e8a1d7a078ad454fa95e0bab48ff120427257eaac7d7c0c56f7f20",
-    "lightbox12": "e62efa5af1ca8f4aec7eb0f708fbb46e51239cfeda7fa6a48ecd1b8c3c0d74ec",
-    "low": "90981c7ba6d9098a7f7fe1ee23b003c60d115983f5194551c750a205e832e519",
-    "medium": "027c6fd60d0cebc619accddaf2830360639994f5a9d384736f2bcddd1299417f",
+    "diverse": "939506df45b56bc2558884633efa08f01757e8e2d7fedbbfb30aba579a4ff999",
+    "high": "8e54e5eaf9bcf2a6084dfaf1908e6e446d583cf5428ed8421ba074031496beae",
+    "lightbox12": "26be5d395cb57575eb348ebe0a1da4268c91f087c6c799e6f1c936be26e7b6ae",
+    "low": "62a6cac12d45b2f54ba0d63e9640670f3e2bf91468ab0fd33420083b78972feb",
+    "medium": "f3f47c6d6a7784840d09fbe3c7cdebe5890cffdc4314cf16955698f3b969107f",
 }
 
 
