@@ -9,8 +9,9 @@ person can look first and check after.
 
 Run: ``python benchmarks/well_contact_sheet.py --out sheet.png`` (``--preset high``, ``--config look.yaml`` over it,
 ``--wells 24`` of each kind, ``--split fit|check|all``, ``--tile 160``, ``--first-scene 20000`` for renders of other
-scenes: by default every sheet draws its renders from the scenes 10000, 10001, ...). A judge's answers, one line per tile in the
-key's form (``row 0, column 3: real``), are scored against the key with ``--score ANSWERS.txt --out sheet.png``.
+scenes: by default every sheet draws its renders from the scenes 10000, 10001, ...). A judge's answers, one line per
+tile in the key's form (``row 0, column 3: real``), are scored against the key with ``--score ANSWERS.txt --out
+sheet.png``.
 """
 
 from __future__ import annotations
