@@ -73,8 +73,8 @@ def test_edge_floor_widens_a_small_plaques_edge_only(base_scene):
 
     def ramp_width(radius_mm: float, floor_mm: float) -> float:
         plaque = scene.plaques[0].model_copy(update={"radius_mm": radius_mm})
-        small = scene.model_copy(update={"plaques": (plaque,)})
-        distance, clearing, _ = clearing_profile(small, well, look.model_copy(update={"edge_floor_mm": floor_mm}))
+        resized = scene.model_copy(update={"plaques": (plaque,)})
+        distance, clearing, _ = clearing_profile(resized, well, look.model_copy(update={"edge_floor_mm": floor_mm}))
         partly = (clearing > 0.1) & (clearing < 0.9)
         return float(np.ptp(distance[partly]))
 
@@ -83,9 +83,10 @@ def test_edge_floor_widens_a_small_plaques_edge_only(base_scene):
     assert ramp_width(0.3, 0.3) > 3 * ramp_width(0.3, 0.0)
     # radius 2 mm: its 0.4 mm edge is wider than the floor, which changes nothing
     assert ramp_width(2.0, 0.3) == ramp_width(2.0, 0.0)
+    wells = appearance.wells_by_grid(scene)
     table, _ = appearance.plaque_table(
         scene.model_copy(update={"plaque_look": look.model_copy(update={"edge_floor_mm": 0.3})}),
-        appearance.wells_by_grid(scene), np.array([w.center_mm for w in appearance.wells_by_grid(scene)]))
+        wells, np.array([w.center_mm for w in wells]))
     assert table["edge_width"][0] == pytest.approx(0.3) and table["radius"][0] == 1.0
 
 
