@@ -651,3 +651,37 @@ def test_the_lysed_cloud_keeps_changing_along_the_whole_plate():
     clamped = np.array([grid_sample(textures.low_grid, u / textures.low_cell_mm + appearance.LYSED_CLOUD_SHIFT,
                                     40.0 / textures.low_cell_mm) for u in along])
     assert (np.abs(np.diff(clamped)) < 1e-9).sum() > 500  # what the clamped read did: standing still for mm
+
+
+def test_panel_shade_darkens_the_floors_toward_the_light_panels_edge():
+    """``background.panel_shade``: a well's floor keeps ``1 - s`` of its light at its rim nearest the light panel's
+    edge, ``s = panel_shade * exp(-d / panel_shade_reach_mm)`` for its rim ``d`` mm inside that edge, the loss fading
+    to none ``panel_shade_width_mm`` inward (a smoothstep); nothing on a desk. Both renderers draw it: the raster
+    renderer from the same table, Blender from this floor texture."""
+    shade = {"background.kind": "lightbox", "background.panel_below": 1.0, "background.panel_margin_y_mm": 0.0,
+             "background.panel_shade": 0.8, "background.panel_shade_reach_mm": 20.0,
+             "background.panel_shade_width_mm": 6.0, "wells.emptied": 0.0}
+    shaded = sample_scene(load_config("high", overrides=shade), 4)
+    plain = sample_scene(load_config("high", overrides={**shade, "background.panel_shade": 0.0}), 4)
+    plate, wells = shaded.plate, appearance.wells_by_grid(shaded)
+    table = appearance.panel_shades(shaded, wells)
+    # the panel's edge is the plate's bottom edge (plate y = its width): the bottom row's rims lie 5.7 mm inside it
+    bottom_row, middle_row = table[(plate.rows - 1) * plate.cols], table[(plate.rows - 2) * plate.cols]
+    inside = plate.width_mm - wells[(plate.rows - 1) * plate.cols].center_mm[1] - plate.well_radius_mm
+    assert bottom_row[0] == pytest.approx(0.8 * np.exp(-inside / 20.0))
+    assert middle_row[0] == pytest.approx(bottom_row[0] * np.exp(-plate.pitch_mm / 20.0))
+    assert tuple(bottom_row[1:]) == (0.0, 1.0, 6.0)  # toward +y, the plate's bottom edge, in plate coordinates
+
+    k = TEXELS_PER_MM  # the same scene but for the shade: the floors' ratio is the light the shade leaves
+    ratio = appearance.floor_transmittance(shaded, k) / appearance.floor_transmittance(plain, k)
+    well = wells[(plate.rows - 1) * plate.cols + 1]
+    column = int(well.center_mm[0] * k)
+    for below_centre_mm, expected in ((-5.0, 0.0), (0.0, 0.0), (plate.well_radius_mm - 6.0, 0.0),
+                                      (plate.well_radius_mm - 3.0, 0.5), (plate.well_radius_mm - 0.1, 0.99)):
+        row = int((well.center_mm[1] + below_centre_mm) * k)
+        x = expected  # the smoothstep's argument at the texel's centre, near enough for these places
+        loss = bottom_row[0] * x * x * (3 - 2 * x)
+        assert ratio[row, column] == pytest.approx(1.0 - loss, abs=0.02)
+    # a desk has no panel: the same draws on a desk shade nothing
+    desk = shaded.model_copy(update={"background": shaded.background.model_copy(update={"kind": "desk"})})
+    assert not appearance.panel_shades(desk, wells).any()

@@ -48,11 +48,11 @@ def test_presets_load_and_sample_json_roundtrip(preset):
 # sha256 of sample_scene(load_config(preset), 3).model_dump_json(): sampling must not change without intent (a change
 # here changes every dataset rendered from these presets). Update only for a deliberate change of the sampling.
 SCENE_SHA256_SEED3 = {
-    "diverse": "939506df45b56bc2558884633efa08f01757e8e2d7fedbbfb30aba579a4ff999",
-    "high": "8e54e5eaf9bcf2a6084dfaf1908e6e446d583cf5428ed8421ba074031496beae",
-    "lightbox12": "26be5d395cb57575eb348ebe0a1da4268c91f087c6c799e6f1c936be26e7b6ae",
-    "low": "62a6cac12d45b2f54ba0d63e9640670f3e2bf91468ab0fd33420083b78972feb",
-    "medium": "f3f47c6d6a7784840d09fbe3c7cdebe5890cffdc4314cf16955698f3b969107f",
+    "diverse": "cfbdadb705e7289de89b3b3727bbed8a39b053ceb0a260ed45cbabe99ad24f04",
+    "high": "f16f0a61393283f48643994cc0382ffcafe3e7676ddfc744db3bad6ce35a9408",
+    "lightbox12": "39e09fba0482ea7bf7a829fcd0e447af2d4bdbc7ca06e2a88e7960412d1ba4ba",
+    "low": "66e41da3ef85ccf727900c43c96bd20fe8ce7795ecfaad8c40dbc7b208660a1b",
+    "medium": "688e3726373e775c86f894b28e03544178c06666c5c6d4f9f68064b951c06994",
 }
 
 
@@ -470,6 +470,9 @@ def test_lysed_paleness_draws_the_remnants_colour_from_the_pale_palette_and_noth
     ("stain", {"stain.pooling": [0.2, 0.5], "stain.rim_mottle_grain_mm": [0.08, 0.2]},
      {"stain.pooling": 0.0, "stain.rim_mottle_grain_mm": 0.06}),
     ("plate_look", {"plate.crescent_veil": [0.02, 0.1]}, {"plate.crescent_veil": 0.0}),
+    ("background", {"background.panel_shade": [0.3, 0.9], "background.panel_shade_reach_mm": [10.0, 30.0],
+                    "background.panel_shade_width_mm": [5.0, 9.0]},
+     {"background.panel_shade": 0.0, "background.panel_shade_reach_mm": 20.0, "background.panel_shade_width_mm": 6.0}),
     ("plate_look", {"plate.wall_lines": [0.2, 0.5], "plate.wall_highlights": [0.05, 0.15]},
      {"plate.wall_lines": 0.0, "plate.wall_highlights": 0.0}),
 ])

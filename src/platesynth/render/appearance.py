@@ -166,6 +166,10 @@ WELL_DTYPE = np.dtype(
         ("noise_x", np.float64),  # the well's shift into the periodic noise tiles (mm)
         ("noise_y", np.float64),
         ("lace", np.float64),  # 0 or 1: a lysed well drawn as a lace of plaques, its layer in the lysed colour
+        ("shade", np.float64),  # share of its floor's light lost at the rim nearest the light panel's edge
+        ("shade_x", np.float64),  # the unit direction toward that edge (plate coordinates)
+        ("shade_y", np.float64),
+        ("shade_width", np.float64),  # the shaded band's width from that rim (mm)
     ]
 )
 """One row per well, in plate row-major order (:func:`well_table`)."""
@@ -225,10 +229,10 @@ PLAQUE_DTYPE = np.dtype(
 
 
 def well_table(wells: list[Well], top_centres: np.ndarray, foot_centres: np.ndarray, tints: np.ndarray,
-               sheens: np.ndarray, well_offsets: np.ndarray) -> np.ndarray:
+               sheens: np.ndarray, well_offsets: np.ndarray, shades: np.ndarray) -> np.ndarray:
     """The :data:`WELL_DTYPE` rows of ``wells`` (plate row-major order), the centres of their walls' top edges and
-    feet, the tints of their walls' bands (:func:`wall_tints`), their changes around the well (:func:`wall_sheen`)
-    and their noise shifts."""
+    feet, the tints of their walls' bands (:func:`wall_tints`), their changes around the well (:func:`wall_sheen`),
+    their noise shifts and their floors' shade near the light panel's edge (:func:`panel_shades`)."""
     table = np.zeros(len(wells), dtype=WELL_DTYPE)
     for i, w in enumerate(wells):
         angle = math.radians(w.stain.centre_angle_deg)
@@ -236,9 +240,46 @@ def well_table(wells: list[Well], top_centres: np.ndarray, foot_centres: np.ndar
             w.id, *w.center_mm, *top_centres[i], *foot_centres[i], *tints[i], *sheens[i], w.stain.density,
             w.stain.centre_gradient, math.cos(angle), math.sin(angle), *w.stain.centre_offset_mm,
             w.stain.drying_detail, float(w.lysed_film), float(w.emptied), *well_offsets[i],
-            float(w.lace),
+            float(w.lace), *shades[i],
         )
     return table
+
+
+def panel_shades(scene: Scene, wells: list[Well]) -> np.ndarray:
+    """The shade of each of ``wells``' floors near the light panel's edge, ``(n, 4)``: the share of its light lost at
+    its rim nearest the edge, the unit direction ``(x, y)`` toward the edge in plate coordinates, and the shaded
+    band's width (mm).
+
+    A well whose floor's rim lies ``d`` mm inside the panel's nearest edge (0 where it overhangs it) loses
+    ``background.panel_shade * exp(-d / background.panel_shade_reach_mm)``: the photos' wells of the row nearest the
+    light box's edge are darker toward it, those of the next row a little, the others not at all. No shade on a desk.
+    """
+    shades = np.zeros((len(wells), 4))
+    bg, plate = scene.background, scene.plate
+    if bg.kind != "lightbox" or bg.panel_shade <= 0.0:
+        return shades
+    left, top, right, bottom = bg.panel_mm
+    mirror = -1.0 if scene.camera.from_below else 1.0  # the panel's x runs along the image's, mirrored from below
+    for i, well in enumerate(wells):
+        bx = mirror * (well.center_mm[0] - 0.5 * plate.length_mm)
+        by = well.center_mm[1] - 0.5 * plate.width_mm
+        to_edge, (toward_x, toward_y) = min((bx - left, (-mirror, 0.0)), (right - bx, (mirror, 0.0)),
+                                            (by - top, (0.0, -1.0)), (bottom - by, (0.0, 1.0)))
+        inside = max(to_edge - plate.well_radius_mm, 0.0)
+        shades[i] = (bg.panel_shade * math.exp(-inside / bg.panel_shade_reach_mm), toward_x, toward_y,
+                     bg.panel_shade_width_mm)
+    return shades
+
+
+@njit(cache=True, nogil=True, inline="always")
+def panel_shade_factor(du, dv, radius, well):
+    """The share of its light a well's floor keeps ``(du, dv)`` mm from the well's centre: ``well.shade`` less at its
+    rim nearest the light panel's edge, the loss fading (a smoothstep) to none ``well.shade_width`` mm inward."""
+    if well.shade <= 0.0:
+        return 1.0
+    toward = du * well.shade_x + dv * well.shade_y
+    x = clip01((toward - radius + well.shade_width) / well.shade_width)
+    return 1.0 - well.shade * x * x * (3.0 - 2.0 * x)
 
 
 def wall_tints(scene: Scene, wells: list[Well], stain: np.ndarray) -> np.ndarray:
@@ -800,9 +841,10 @@ def _bake_floor(texel_mm, a1x, a1y, pitch, rows, cols, radius, wells, stain, low
             density, lysed = changed_density(density, lysed, u, v, well, st, clearing[y, x], rim[y, x], scratched[y, x], heaped[y, x],
                                              specks[y, x], residual_tile)
             r, g, b = layer_transmittance(density, st, lysed, scratched[y, x])
-            out[y, x, 0] = r
-            out[y, x, 1] = g
-            out[y, x, 2] = b
+            light = panel_shade_factor(du, dv, radius, well)
+            out[y, x, 0] = r * light
+            out[y, x, 1] = g * light
+            out[y, x, 2] = b * light
 
 
 def fibre_grid_or_empty(textures: SceneTextures) -> np.ndarray:
@@ -858,7 +900,8 @@ def floor_transmittance(scene: Scene, texels_per_mm: float, textures: SceneTextu
     untinted = np.ones((len(wells), 3))  # the floors only: the walls' bands are films of their own in Blender
     even = np.zeros((len(wells), 2 * WALL_GLINT_HARMONICS))
     _bake_floor(1.0 / grid.px_per_mm, plate.a1_x_mm, plate.a1_y_mm, plate.pitch_mm, plate.rows, plate.cols,
-                plate.well_radius_mm, well_table(wells, centres, centres, untinted, even, textures.well_offsets),
+                plate.well_radius_mm, well_table(wells, centres, centres, untinted, even, textures.well_offsets,
+                                                        panel_shades(scene, wells)),
                 stain_table(scene, textures),
                 textures.low_grid, fibre_grid_or_empty(textures), textures.fine_tile, textures.mottle_tile,
                 textures.residual_tile, content.clearing, content.rim, content.scratched, content.heaped, content.specks, out)

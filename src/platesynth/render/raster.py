@@ -200,7 +200,7 @@ def render_raster(scene: Scene, size: tuple[int, int] = (1024, 768)) -> RenderRe
         np.asarray(bg.panel_mm, dtype=np.float64), blots,
         appearance.well_table(wells, top_centres, foot_centres, appearance.wall_tints(scene, wells, stain[0]),
                               appearance.wall_sheen(scene, wells, view.principal_mm, textures.wall_glints),
-                              textures.well_offsets), stain,
+                              textures.well_offsets, appearance.panel_shades(scene, wells)), stain,
         plate_relief(scene.plate, k, scene.plate_look.labels_at_junction), marker_ink(scene, k), k, textures.low_grid,
         appearance.fibre_grid_or_empty(textures), desk_grid, desk_cell_px, textures.fine_tile,
         textures.mottle_tile, textures.residual_tile, content.clearing, content.rim, content.scratched, content.heaped, content.specks, light_gains(scene),

@@ -123,6 +123,14 @@ class BackgroundConfig(Section):
     frame_mm: Dist = number([0.0, 15.0], 0.0, 100.0, "mm", "width of the light box's frame around the panel")
     desk_warmth: Dist = number([-0.03, 0.06], -0.5, 0.5, "",
                                "warmth of the desk: red raised and blue lowered by this fraction of its grey")
+    panel_shade: Dist = number(0.0, 0.0, 1.0, "",
+                               "share of its light a well's floor loses at its rim nearest the light panel's edge, "
+                               "for a well at that edge (a darker band at the bottom of the wells nearest it)")
+    panel_shade_reach_mm: Dist = number(20.0, 1.0, 200.0, "mm",
+                                        "how far from the panel's edge the shade reaches: a well's shade falls by e "
+                                        "over this distance between its floor's rim and the edge")
+    panel_shade_width_mm: Dist = number(6.0, 0.5, 20.0, "mm",
+                                        "width of the shaded band inside a well, from its rim nearest the panel's edge")
 
 
 class StainConfig(Section):

@@ -260,6 +260,12 @@ class Background(_Concrete):
         "image's x and y (before the camera's rotation)"
     )
     frame_mm: float = Field(description="width of the light box's frame around the panel, mm")
+    panel_shade: float = Field(0.0, description="share of its light a well's floor loses at its rim nearest the "
+                               "light panel's edge, for a well at that edge")
+    panel_shade_reach_mm: float = Field(20.0, description="distance between a floor's rim and the panel's edge over "
+                                        "which the shade falls by e, mm")
+    panel_shade_width_mm: float = Field(6.0, description="width of the shaded band inside a well, from its rim "
+                                        "nearest the panel's edge, mm")
 
 
 class Lighting(_Concrete):

@@ -45,6 +45,8 @@ PLAQUE_LOOK_OWN_STREAM = {"lumps": "plaque_lumps", "residual_mottle": "plaque_re
                           "residual_tint": "plaque_residual_tint", "edge_floor_mm": "plaque_edge_floor"}
 """Fields of the plaque look drawn from a random stream of their own, and its name (added later: every other draw
 stays)."""
+PANEL_SHADE = ("panel_shade", "panel_shade_reach_mm", "panel_shade_width_mm")
+"""The background's shade of the floors near the light panel's edge, drawn from the stream ``panel_shade``."""
 SBS_LENGTH_MM, SBS_WIDTH_MM = 127.76, 85.48
 """The SBS footprint of every plate format."""
 # rows, cols, pitch, bottom radius, wall thickness, well depth (mm); SBS footprint, wells centred on the plate
@@ -194,6 +196,7 @@ def sample_scene(config: SceneConfig, seed: int) -> Scene:
     below = b.draw("panel_below", rng)
     portrait = b.draw("panel_portrait", rng)
     left = b.draw("panel_left", rng)
+    shade_rng = scene_rng(seed, "panel_shade")  # drawn beside the main order: scenes drawn before stay
     background = Background(
         kind=kind,
         brightness=brightness,
@@ -202,6 +205,7 @@ def sample_scene(config: SceneConfig, seed: int) -> Scene:
         ruler=ruler,
         panel_mm=_light_panel(plate, margins, below, portrait, left),
         frame_mm=b.draw("frame_mm", rng),
+        **{name: b.draw(name, shade_rng) for name in PANEL_SHADE},
     )
 
     hue_deg, saturation = c.stain.draw("hue_deg", rng), c.stain.draw("saturation", rng)
