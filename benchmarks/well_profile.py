@@ -24,6 +24,12 @@ upper half and right half minus left half of a ring (:data:`SIDED_RING` radii), 
 that mean vector (0 when the wells' darker sides point every way; PR8's photos are darker toward the bottom in every
 well, ``stain.pooling``), its median over the images.
 
+And each well's outer band by side: the sRGB-decoded blue (the channel a violet stain passes most of) in the band
+:data:`SIDE_BAND` radii wide inside the rim, on each side (top, bottom, left, right: sectors of
+:data:`SIDE_SPREAD_DEG` either side), over the well's centre (within :data:`SIDE_CENTRE` radii); the median over
+the images of each well position, averaged over each plate row's wells. PR8's photos keep 0.56-0.64 of the
+centre's blue at the bottom of the row nearest the light box's edge (``background.panel_shade``).
+
 Run: ``python benchmarks/well_profile.py`` (``--preset P``, ``--images N``, ``--set name=value`` overrides).
 """
 
@@ -54,6 +60,10 @@ RINGS = (0.0, 0.3, 0.5, 0.7, 0.8, 0.85, 0.9, 0.93, 0.96)
 """Edges of the rings inside a plain well, in radii (the first ring is the centre the others are relative to)."""
 SIDED_RING = (0.7, 0.95)
 """The ring of a plain well whose halves the one-sidedness compares, in radii."""
+SIDE_BAND, SIDE_CENTRE, SIDE_SPREAD_DEG = (0.75, 0.92), 0.4, 30
+"""The outer band by side: its radii, the centre it is divided by (radii), and each side's half-angle (degrees)."""
+SIDES_DEG = {"top": -90, "bottom": 90, "left": 180, "right": 0}
+"""The sides' directions in the image (y down), degrees."""
 
 
 def main(argv: list[str] | None = None) -> None:
@@ -69,6 +79,7 @@ def main(argv: list[str] | None = None) -> None:
 
     from platesynth.io import list_images, read_image
     from platesynth.metrics import fit_plate_grid
+    from platesynth.render.color import srgb_to_linear
     from platesynth.render.look import LUMINANCE
     from platesynth.render.raster import render_raster
     from platesynth.scene import sample_scene
@@ -152,6 +163,28 @@ def main(argv: list[str] | None = None) -> None:
                           (luminance[ring & (dx > 0)].mean() - luminance[ring & (dx < 0)].mean()) / level))
         return float(np.hypot(*np.mean(sides, axis=0)))
 
+    def sides(image: np.ndarray, discs) -> np.ndarray:
+        """One row per well of ``discs``: the linear blue of its outer band on each of :data:`SIDES_DEG` over its
+        centre's."""
+        blue = np.asarray(srgb_to_linear(image[..., 2] / 255.0))
+        yy, xx = np.mgrid[: blue.shape[0], : blue.shape[1]]
+        rows = []
+        for disc in discs:
+            dy, dx = yy - disc.cy, xx - disc.cx
+            radius = np.hypot(dy, dx) / disc.radius
+            band = (radius > SIDE_BAND[0]) & (radius < SIDE_BAND[1])
+            angle = np.degrees(np.arctan2(dy, dx))
+            centre = np.median(blue[radius < SIDE_CENTRE])
+            rows.append([np.median(blue[band & (np.abs((angle - side + 180) % 360 - 180) < SIDE_SPREAD_DEG)]) / centre
+                         for side in SIDES_DEG.values()])
+        return np.array(rows)
+
+    def report_sides(label: str, measured: list, rows: int, cols: int) -> None:
+        per_position = np.median([sides(m.image, m.discs) for m in measured], axis=0).reshape(rows, cols, -1)
+        for row, levels in enumerate(per_position.mean(axis=1)):
+            print(f"{label if row == 0 else '':24s} {len(measured):6d}  row {row}  "
+                  + "  ".join(f"{side} {level:.2f}" for side, level in zip(SIDES_DEG, levels)))
+
     def report_around(label: str, wells: np.ndarray) -> None:
         outer, inner = wells[:, 2] > OFF_AXIS, wells[:, 2] <= OFF_AXIS
         print(f"{label:24s} {len(wells):6d}  unevenness {np.median(wells[:, 0]):5.2f}  outward harmonic: outer wells "
@@ -219,6 +252,12 @@ def main(argv: list[str] | None = None) -> None:
                            if len(m.plain) >= 2])
         print(f"{name:24s} {len(values):6d}  {np.median(values):.3f} ({np.percentile(values, 25):.3f}-"
               f"{np.percentile(values, 75):.3f})")
+
+    print(f"\n{'outer band by side, of':24s} {'images':>6s}  linear blue at {SIDE_BAND[0]}-{SIDE_BAND[1]} radii on each "
+          f"side over the centre's (within {SIDE_CENTRE}), median per well, mean per plate row")
+    for name, measured in sets:
+        report_sides(name, measured, 3, 4)
+
 
 if __name__ == "__main__":
     main()
