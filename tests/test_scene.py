@@ -48,11 +48,11 @@ def test_presets_load_and_sample_json_roundtrip(preset):
 # sha256 of sample_scene(load_config(preset), 3).model_dump_json(): sampling must not change without intent (a change
 # here changes every dataset rendered from these presets). Update only for a deliberate change of the sampling.
 SCENE_SHA256_SEED3 = {
-    "diverse": "cfbdadb705e7289de89b3b3727bbed8a39b053ceb0a260ed45cbabe99ad24f04",
-    "high": "f16f0a61393283f48643994cc0382ffcafe3e7676ddfc744db3bad6ce35a9408",
-    "lightbox12": "39e09fba0482ea7bf7a829fcd0e447af2d4bdbc7ca06e2a88e7960412d1ba4ba",
-    "low": "66e41da3ef85ccf727900c43c96bd20fe8ce7795ecfaad8c40dbc7b208660a1b",
-    "medium": "688e3726373e775c86f894b28e03544178c06666c5c6d4f9f68064b951c06994",
+    "diverse": "1ad2d18c5e21389b645f731692629a3ed5013ce06be369ef4cfa13d625826723",
+    "high": "d18f205e3389a02ceb1d313360a8317576215671250774ea718582c58812fbdb",
+    "lightbox12": "802eca23e9af86f3049ec8c8906ecaffea97d767fec9f7c5da1f9f33cd856c78",
+    "low": "5f6f465ed26b638a1438187c16cdf24595d595e2d9f23aab5fcd077c3cad3326",
+    "medium": "ab13dc86c4a2bf237652eaa62d5fe9b2c66eaafd665b8ac215f0b1be73727f2e",
 }
 
 
@@ -470,6 +470,7 @@ def test_lysed_paleness_draws_the_remnants_colour_from_the_pale_palette_and_noth
     ("stain", {"stain.pooling": [0.2, 0.5], "stain.rim_mottle_grain_mm": [0.08, 0.2]},
      {"stain.pooling": 0.0, "stain.rim_mottle_grain_mm": 0.06}),
     ("plate_look", {"plate.crescent_veil": [0.02, 0.1]}, {"plate.crescent_veil": 0.0}),
+    ("stain", {"stain.crowd_thinning": [2.0, 8.0]}, {"stain.crowd_thinning": 0.0}),
     ("background", {"background.panel_shade": [0.3, 0.9], "background.panel_shade_reach_mm": [10.0, 30.0],
                     "background.panel_shade_width_mm": [5.0, 9.0]},
      {"background.panel_shade": 0.0, "background.panel_shade_reach_mm": 20.0, "background.panel_shade_width_mm": 6.0}),

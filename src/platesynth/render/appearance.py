@@ -229,20 +229,43 @@ PLAQUE_DTYPE = np.dtype(
 
 
 def well_table(wells: list[Well], top_centres: np.ndarray, foot_centres: np.ndarray, tints: np.ndarray,
-               sheens: np.ndarray, well_offsets: np.ndarray, shades: np.ndarray) -> np.ndarray:
+               sheens: np.ndarray, well_offsets: np.ndarray, shades: np.ndarray, densities: np.ndarray) -> np.ndarray:
     """The :data:`WELL_DTYPE` rows of ``wells`` (plate row-major order), the centres of their walls' top edges and
     feet, the tints of their walls' bands (:func:`wall_tints`), their changes around the well (:func:`wall_sheen`),
-    their noise shifts and their floors' shade near the light panel's edge (:func:`panel_shades`)."""
+    their noise shifts, their floors' shade near the light panel's edge (:func:`panel_shades`) and their layers'
+    densities (:func:`layer_densities`)."""
     table = np.zeros(len(wells), dtype=WELL_DTYPE)
     for i, w in enumerate(wells):
         angle = math.radians(w.stain.centre_angle_deg)
         table[i] = (
-            w.id, *w.center_mm, *top_centres[i], *foot_centres[i], *tints[i], *sheens[i], w.stain.density,
+            w.id, *w.center_mm, *top_centres[i], *foot_centres[i], *tints[i], *sheens[i], densities[i],
             w.stain.centre_gradient, math.cos(angle), math.sin(angle), *w.stain.centre_offset_mm,
             w.stain.drying_detail, float(w.lysed_film), float(w.emptied), *well_offsets[i],
             float(w.lace), *shades[i],
         )
     return table
+
+
+def layer_densities(scene: Scene, wells: list[Well]) -> np.ndarray:
+    """Each of ``wells``' layer density: its drawn density, thinned in a crowded well by
+    ``exp(-stain.crowd_thinning * share)``, ``share`` the part of the floor its plaques' discs cover (at most 1; no
+    thinning in a lysed or emptied well, whose colour is drawn on its own).
+
+    In the photos' saturated plates the green of a well's layer is crushed to 0 up to about 20 plaques and stands at
+    60-80 (8-bit) in wells of more, where the cells between the plaques are damaged too.
+    """
+    densities = np.array([w.stain.density for w in wells], dtype=np.float64)
+    thinning = scene.stain.crowd_thinning
+    if thinning <= 0.0:
+        return densities
+    floor_area = math.pi * scene.plate.well_radius_mm ** 2
+    cleared: dict[int, float] = {}
+    for plaque in scene.plaques:
+        cleared[plaque.well] = cleared.get(plaque.well, 0.0) + math.pi * plaque.radius_mm ** 2
+    for i, well in enumerate(wells):
+        if not (well.lysed or well.emptied):
+            densities[i] *= math.exp(-thinning * min(cleared.get(well.id, 0.0) / floor_area, 1.0))
+    return densities
 
 
 def panel_shades(scene: Scene, wells: list[Well]) -> np.ndarray:
@@ -284,14 +307,16 @@ def panel_shade_factor(du, dv, radius, well):
 
 def wall_tints(scene: Scene, wells: list[Well], stain: np.ndarray) -> np.ndarray:
     """Linear RGB factors ``(n, 3)`` on the band over each wall of ``wells``: the transmittance of its well's layer
-    at the well's density (a lysed well's, film or lace, times ``stain.lysed_density``, in the colour of what it
-    keeps; none in an emptied well), raised to ``plate_look.wall_stain``. ``stain`` is the :func:`stain_table` row."""
+    at the well's density (:func:`layer_densities`; a lysed well's, film or lace, times ``stain.lysed_density``, in
+    the colour of what it keeps; none in an emptied well), raised to ``plate_look.wall_stain``. ``stain`` is the
+    :func:`stain_table` row."""
     share = scene.plate_look.wall_stain
     tints = np.ones((len(wells), 3))
     if share > 0.0:
+        densities = layer_densities(scene, wells)
         for i, well in enumerate(wells):
             if not well.emptied:
-                density = well.stain.density * (stain["lysed_density"] if well.lysed else 1.0)
+                density = densities[i] * (stain["lysed_density"] if well.lysed else 1.0)
                 tints[i] = np.power(stain_transmittance(density, stain, float(well.lysed)), share)
     return tints
 
@@ -901,7 +926,7 @@ def floor_transmittance(scene: Scene, texels_per_mm: float, textures: SceneTextu
     even = np.zeros((len(wells), 2 * WALL_GLINT_HARMONICS))
     _bake_floor(1.0 / grid.px_per_mm, plate.a1_x_mm, plate.a1_y_mm, plate.pitch_mm, plate.rows, plate.cols,
                 plate.well_radius_mm, well_table(wells, centres, centres, untinted, even, textures.well_offsets,
-                                                        panel_shades(scene, wells)),
+                                                        panel_shades(scene, wells), layer_densities(scene, wells)),
                 stain_table(scene, textures),
                 textures.low_grid, fibre_grid_or_empty(textures), textures.fine_tile, textures.mottle_tile,
                 textures.residual_tile, content.clearing, content.rim, content.scratched, content.heaped, content.specks, out)

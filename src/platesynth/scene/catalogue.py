@@ -161,6 +161,10 @@ class StainConfig(Section):
         "millimetres with about half the rim bare (sheets of cells that came loose here and there)")
     meniscus: Dist = number(0.0, 0.0, 5.0, "", "extra stain density, relative, in a thin dark line along the rim where "
                             "the meniscus of the stain left more dye")
+    crowd_thinning: Dist = number(0.0, 0.0, 20.0, "",
+                                  "how much the layer between the plaques of a crowded well thins: its density times "
+                                  "exp(-crowd_thinning * the share of the well's floor its plaques cover), as the "
+                                  "photos' crowded wells are paler, their green no longer crushed")
     pooling: Dist = number(0.0, 0.0, 1.0, "", "extra stain density, relative, where the dye pooled in each well toward "
                            "the side the plate was tilted to (rim_mottle_side's, drawn per plate): this times "
                            "the square of the distance toward that side over the radius, so most near that rim "

@@ -98,6 +98,8 @@ class Stain(_Concrete):
     rim_mottle_angle_deg: float = Field(0.0, description="direction of the side the plate was tilted to, where the "
                                         "band is strongest and the dye pooled, degrees (plate x axis 0, y axis 90)")
     meniscus: float = Field(0.0, description="extra stain density in a thin line along the rim, relative")
+    crowd_thinning: float = Field(0.0, description="how much the layer between a crowded well's plaques thins: its "
+                                  "density times exp(-crowd_thinning * the share of the floor its plaques cover)")
     pooling: float = Field(0.0, description="extra stain density, relative, where the dye pooled toward the side of "
                                             "rim_mottle_angle_deg: this times the square of the distance toward it "
                                             "over the radius")
