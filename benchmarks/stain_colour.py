@@ -10,6 +10,12 @@ renders at the photos' size. Prints the 10th, 50th and 90th percentiles per spli
 ``--per-plate``, also the median over each plate's wells, photo by photo and render by render (the photos' plates
 fall into kinds: saturated wells with the green crushed to 0, and pale bluish ones).
 
+And the green of each well's layer by its plaque count (the person's count in the photos, uncountable wells left
+out; the true count in the renders, lysed and emptied wells left out): the median green of the pixels within
+:data:`CENTRE_SHARE` of the radius whose blue exceeds their green by :data:`STAIN_MARGIN` (the stain between the
+plaques), by virus and for the preset, in bins of the count. The photos' saturated plates keep their green at 0 up to
+about 20 plaques and at 60-80 in wells of more (``stain.crowd_thinning``).
+
 Run: ``python benchmarks/stain_colour.py`` (``--preset P``, ``--images N``, ``--set name=value`` overrides,
 ``--per-plate``).
 """
@@ -29,6 +35,10 @@ CENTRE_SHARE = 0.6
 """Pixels within this share of the well's radius from its centre are measured."""
 GRAIN_BLUR_PX = 1.5
 """The grain is what a Gaussian blur of this sd (pixels, at the photos' size) takes away."""
+STAIN_MARGIN = 60
+"""A pixel is the violet stain (not a plaque) where its blue exceeds its green by this many 8-bit levels."""
+COUNT_BINS = ((0, 0), (1, 5), (6, 20), (21, 50), (51, 10_000))
+"""Bins of the plaque count for the green by count."""
 
 
 def main(argv: list[str] | None = None) -> None:
@@ -42,6 +52,7 @@ def main(argv: list[str] | None = None) -> None:
     from scipy import ndimage
     from skimage.color import rgb2hsv
 
+    from platesynth.data.layout import read_counts_csv
     from platesynth.io import list_images, read_image
     from platesynth.metrics import fit_plate_grid, wells_from_mask
     from platesynth.render.look import LUMINANCE
@@ -65,6 +76,22 @@ def main(argv: list[str] | None = None) -> None:
         print(f"{label:24s} {len(medians):5d}  hue {np.round(hue * 360).astype(int)}  saturation {np.round(sat, 2)}  "
               f"value {np.round(val, 2)}  green {np.round(green).astype(int)}  grain {np.round(grain, 2)}")
 
+    def stain_green(image, disc) -> float:
+        """The median green (8-bit) of the stain's pixels in ``disc``'s centre, NaN where there are too few."""
+        yy, xx = np.mgrid[: image.shape[0], : image.shape[1]]
+        pixels = image[(yy - disc.cy) ** 2 + (xx - disc.cx) ** 2 < (CENTRE_SHARE * disc.radius) ** 2][:, :3]
+        stain = pixels[pixels[:, 2].astype(int) > pixels[:, 1].astype(int) + STAIN_MARGIN]
+        return float(np.median(stain[:, 1])) if len(stain) > 50 else float("nan")
+
+    def report_green(label: str, counted: list[tuple[int, float]]) -> None:
+        pairs = np.array(counted, dtype=np.float64).reshape(-1, 2)
+        cells = []
+        for low, high in COUNT_BINS:
+            green = pairs[(pairs[:, 0] >= low) & (pairs[:, 0] <= high) & ~np.isnan(pairs[:, 1]), 1]
+            cells.append(f"{low}-{high if high < 10_000 else ''}: {np.median(green) if len(green) else np.nan:3.0f} "
+                         f"({len(green)})")
+        print(f"{label:24s} " + "  ".join(cells))
+
     def plate_median(label: str, medians: np.ndarray) -> None:
         hue, sat, val, green, grain = np.median(medians, axis=0)
         print(f"  {label:22s} hue {hue * 360:5.0f}  saturation {sat:4.2f}  value {val:4.2f}  green {green:5.0f}  "
@@ -82,14 +109,39 @@ def main(argv: list[str] | None = None) -> None:
             for path, plate in zip(names, medians):
                 plate_median(path.stem, plate)
     config, label = preset_config(args)
-    medians = []
+    medians, rendered_green = [], []
     for index in range(args.images):
-        result = render_raster(sample_scene(config, args.seed + index), (1216, 944))
-        medians.append(well_medians(result.image, wells_from_mask(result.wells)))
+        scene = sample_scene(config, args.seed + index)
+        result = render_raster(scene, (1216, 944))
+        discs = wells_from_mask(result.wells)
+        medians.append(well_medians(result.image, discs))
+        counts = {well.id: 0 for well in scene.wells if not (well.lysed or well.emptied)}
+        for plaque in scene.plaques:
+            if plaque.well in counts:
+                counts[plaque.well] += 1
+        rendered_green += [(counts[d.id], stain_green(result.image, d)) for d in discs if d.id in counts]
     report(label, np.concatenate(medians))
     if args.per_plate:
         for index, plate in enumerate(medians):
             plate_median(f"seed {args.seed + index}", plate)
+
+    table = SHARED / "data" / "plaque12" / "counts.csv"
+    print(f"\n{'green of the stain, of':24s} median 8-bit green of the stain between the plaques, by plaque count "
+          "(wells)")
+    counted_by_virus: dict[str, list[tuple[int, float]]] = {}
+    by_image: dict[str, list] = {}
+    for row in read_counts_csv(table):
+        if row.count is not None:
+            by_image.setdefault(row.image, []).append(row)
+    for path in photos:
+        if path.name in by_image:
+            image = read_image(path)
+            discs = fit_plate_grid(image)
+            counted_by_virus.setdefault(path.name.split("_")[0], []).extend(
+                (row.count, stain_green(image, discs[row.row * 4 + row.col])) for row in by_image[path.name])
+    for virus, counted in counted_by_virus.items():
+        report_green(f"real, {virus}", counted)
+    report_green(label, rendered_green)
 
 
 if __name__ == "__main__":

@@ -685,3 +685,35 @@ def test_panel_shade_darkens_the_floors_toward_the_light_panels_edge():
     # a desk has no panel: the same draws on a desk shade nothing
     desk = shaded.model_copy(update={"background": shaded.background.model_copy(update={"kind": "desk"})})
     assert not appearance.panel_shades(desk, wells).any()
+
+
+def test_crowd_thinning_thins_the_layer_of_a_crowded_well_by_the_share_its_plaques_cover(base_scene):
+    """``stain.crowd_thinning``: a well's layer density times ``exp(-crowd_thinning * share)``, ``share`` the part
+    of its floor its plaques' discs cover (at most 1); the wells without plaques, and lysed ones, keep theirs. The
+    table both renderers draw from holds it, so the floor texture of the crowded well is paler in every channel."""
+    scene, well = base_scene
+    radius = scene.plate.well_radius_mm
+    crowd = tuple(Plaque(id=i + 1, well=well.id, center_mm=(well.center_mm[0] + dx, well.center_mm[1] + dy),
+                         radius_mm=1.5, fourier=(), softness=0.2, clearness=1.0)
+                  for i, (dx, dy) in enumerate([(-5, -5), (5, -5), (-5, 5), (5, 5)]))
+    share = 4 * 1.5**2 / radius**2
+    lysed = next(w for w in scene.wells if w.id != well.id)
+    crowded = scene.model_copy(update={
+        "plaques": crowd + (Plaque(id=5, well=lysed.id, center_mm=lysed.center_mm, radius_mm=3.0, fourier=(),
+                                   softness=0.2, clearness=1.0),),
+        "wells": tuple(w.model_copy(update={"lysed": w.id == lysed.id, "emptied": False}) for w in scene.wells)})
+    thinned = crowded.model_copy(update={"stain": crowded.stain.model_copy(update={"crowd_thinning": 4.0})})
+    wells = appearance.wells_by_grid(thinned)
+    drawn = np.array([w.stain.density for w in wells])
+    np.testing.assert_array_equal(appearance.layer_densities(crowded, wells), drawn)
+    expected = drawn.copy()
+    expected[[w.id for w in wells].index(well.id)] *= np.exp(-4.0 * share)
+    np.testing.assert_allclose(appearance.layer_densities(thinned, wells), expected)
+
+    k = TEXELS_PER_MM
+    col, row = int(well.center_mm[0] * k), int(well.center_mm[1] * k)  # the centre, between the four plaques
+    before, after = (appearance.floor_transmittance(s, k)[row, col] for s in (crowded, thinned))
+    assert np.all(after > before)
+    # the red and blue absorbance at the centre fall by the factor the density does (the green, nearly all absorbed,
+    # is held up by the share of light the layer lets through, stain.translucency)
+    np.testing.assert_allclose((np.log(after) / np.log(before))[[0, 2]], np.exp(-4.0 * share), rtol=0.02)
