@@ -100,10 +100,21 @@ def main(argv: list[str] | None = None) -> None:
     photos = list_images(SHARED / "data" / "plaque12" / "plates")
     if not photos:
         raise SystemExit(f"no real photos under {SHARED}: set PLATESYNTH_SHARED to the shared material")
+    counted_rows: dict[str, list] = {}
+    for row in read_counts_csv(SHARED / "data" / "plaque12" / "counts.csv"):
+        if row.count is not None:
+            counted_rows.setdefault(row.image, []).append(row)
+    counted_by_virus: dict[str, list[tuple[int, float]]] = {}
     print(f"{'wells of':24s} {'n':>5s}  percentiles 10, 50, 90")
     for split in ("fit", "check"):
         names = [p for p in photos if in_split(p.name, split)]
-        medians = [well_medians(image, fit_plate_grid(image)) for image in (read_image(p) for p in names)]
+        medians = []
+        for path in names:  # each photo read and its plate grid fitted once, for both measures
+            image = read_image(path)
+            discs = fit_plate_grid(image)
+            medians.append(well_medians(image, discs))
+            counted_by_virus.setdefault(path.name.split("_")[0], []).extend(
+                (row.count, stain_green(image, discs[row.row * 4 + row.col])) for row in counted_rows.get(path.name, []))
         report(f"real, {split}", np.concatenate(medians))
         if args.per_plate:
             for path, plate in zip(names, medians):
@@ -125,21 +136,9 @@ def main(argv: list[str] | None = None) -> None:
         for index, plate in enumerate(medians):
             plate_median(f"seed {args.seed + index}", plate)
 
-    table = SHARED / "data" / "plaque12" / "counts.csv"
     print(f"\n{'green of the stain, of':24s} median 8-bit green of the stain between the plaques, by plaque count "
           "(wells)")
-    counted_by_virus: dict[str, list[tuple[int, float]]] = {}
-    by_image: dict[str, list] = {}
-    for row in read_counts_csv(table):
-        if row.count is not None:
-            by_image.setdefault(row.image, []).append(row)
-    for path in photos:
-        if path.name in by_image:
-            image = read_image(path)
-            discs = fit_plate_grid(image)
-            counted_by_virus.setdefault(path.name.split("_")[0], []).extend(
-                (row.count, stain_green(image, discs[row.row * 4 + row.col])) for row in by_image[path.name])
-    for virus, counted in counted_by_virus.items():
+    for virus, counted in sorted(counted_by_virus.items()):
         report_green(f"real, {virus}", counted)
     report_green(label, rendered_green)
 
