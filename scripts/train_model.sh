@@ -34,15 +34,18 @@ render() {
 # session), its walls' outlines and its wells' centres darkened and its colour casts weakened (twelfth), and its
 # walls' band darkened and tinted over a foot below the floors and its pipette scratches tilted (fifteenth), and
 # its walls' top edge smeared and its sharpening moved to the luminance (seventeenth), and its scratches made greyer
-# and softer (eighteenth).
+# and softer (eighteenth), and its stain took the two kinds of plate's colour (twenty-sixth; the crowded part keeps
+# the colour of before through crowded-soft.yaml).
 # These settings, high's values of then, give the same configurations as then (compared with the manifests of its
-# data, and the first images and masks of each part pixel for pixel). The plaques' two apply to the high part
-# only: crowded-soft.yaml sets its own. AS_SHIPPED=0, or a HIGH_CONFIG, renders today's high instead. One fix of the
-# renderer since changes a few of its images: the cloud of a lysed well past the right edge of the unevenness grid
-# (twenty-first session): of the first 30 images of each part, one of the 120 (medium's 000006.png), and no mask.
+# data, and the first images and masks of each part pixel for pixel). The plaques' two and the stain's colour's four
+# (SHIPPED_COLOUR) apply to the high part only: crowded-soft.yaml sets its own. AS_SHIPPED=0, or a HIGH_CONFIG,
+# renders today's high instead. One fix of the renderer since changes a few of its images: the cloud of a lysed
+# well past the right edge of the unevenness grid (twenty-first session): of the first 30 images of each part, one
+# of the 120 (medium's 000006.png), and no mask.
 AS_SHIPPED=${AS_SHIPPED:-1}
 SHIPPED_LOOK=()
 SHIPPED_PLAQUES=()
+SHIPPED_COLOUR=()
 if [ "$AS_SHIPPED" = 1 ] && [ -z "$HIGH_CONFIG" ]; then
     SHIPPED_LOOK=(--set "stain.hue_deg=[246,286]"
                   --set "stain.lysed_residue=[0.02,0.05]" --set "stain.lysed_strands=[0.3,0.5]"
@@ -60,9 +63,11 @@ if [ "$AS_SHIPPED" = 1 ] && [ -z "$HIGH_CONFIG" ]; then
                   --set "artifacts.scratch_clearing=0.95" --set "artifacts.scratch_haze=0"
                   --set "artifacts.scratch_softness_mm=0")
     SHIPPED_PLAQUES=(--set "plaques.centre_residual=[0.15,0.4]" --set "plaques.clearness=[0.95,1.0]")
+    SHIPPED_COLOUR=(--set "stain.saturation=[0.9,1.0]" --set "stain.translucency=[0,0.008]"
+                    --set "stain.pale_plates=0" --set "lighting.glare=[0,0.04]")
 fi
 render high 450 201 high --set plaques.negative_plate=0.2 ${HIGH_CONFIG:+--config "$HIGH_CONFIG"} "${SHIPPED_LOOK[@]}" \
-    "${SHIPPED_PLAQUES[@]}"
+    "${SHIPPED_PLAQUES[@]}" "${SHIPPED_COLOUR[@]}"
 render medium 150 202 medium
 render diverse 150 204 diverse
 render crowded 150 205 high --config "$(dirname "$0")/../benchmarks/configs/crowded-soft.yaml" "${SHIPPED_LOOK[@]}"

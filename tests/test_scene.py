@@ -49,7 +49,7 @@ def test_presets_load_and_sample_json_roundtrip(preset):
 # here changes every dataset rendered from these presets). Update only for a deliberate change of the sampling.
 SCENE_SHA256_SEED3 = {
     "diverse": "1ad2d18c5e21389b645f731692629a3ed5013ce06be369ef4cfa13d625826723",
-    "high": "d18f205e3389a02ceb1d313360a8317576215671250774ea718582c58812fbdb",
+    "high": "6a36c7c25b280e8974601877e6a026b3acc099f2e9d374b2e3e7c0ea1cf8f029",
     "lightbox12": "802eca23e9af86f3049ec8c8906ecaffea97d767fec9f7c5da1f9f33cd856c78",
     "low": "5f6f465ed26b638a1438187c16cdf24595d595e2d9f23aab5fcd077c3cad3326",
     "medium": "ab13dc86c4a2bf237652eaa62d5fe9b2c66eaafd665b8ac215f0b1be73727f2e",
@@ -425,9 +425,11 @@ def test_cli_scene_catalogue_json_and_errors():
 
 
 def test_lysed_paleness_draws_the_remnants_colour_from_the_pale_palette_and_nothing_else():
-    pale = {"stain.lysed_paleness": [0.5, 1.0], "stain.pale_hue_deg": [236, 248], "stain.pale_saturation": [0.4, 0.65]}
+    # no pale plates, whose own hue and saturation the pale palette also draws
+    pale = {"stain.lysed_paleness": [0.5, 1.0], "stain.pale_hue_deg": [236, 248], "stain.pale_saturation": [0.4, 0.65],
+            "stain.pale_plates": 0.0}
     for seed in range(6):
-        usual = sample_scene(load_config("high", overrides={"stain.lysed_paleness": 0.0}), seed)
+        usual = sample_scene(load_config("high", overrides={"stain.lysed_paleness": 0.0, "stain.pale_plates": 0.0}), seed)
         assert usual.stain.lysed_paleness == 0.0 and usual.stain.lysed_hue_deg is None
         thin = sample_scene(load_config("high", overrides=pale), seed)
         assert 0.5 <= thin.stain.lysed_paleness <= 1.0
