@@ -3,7 +3,7 @@
 # presets. The shipped weights came from this recipe at commit 45fca72 (AS_SHIPPED=0 there, since gone: the same
 # renders) on 2 CPU cores, twenty-sixth session:
 #
-#   DEVICE=cpu WORKERS=1 scripts/train_model.sh   # about 45 minutes alone; --device auto picks CUDA where there is one
+#   DEVICE=cpu WORKERS=1 scripts/train_model.sh   # 68 minutes sharing the cores; --device auto picks CUDA
 #
 #   DATA=/scratch/plates MODEL=/scratch/model THREADS=4 scripts/train_model.sh
 #   HIGH_CONFIG=my-look.yaml scripts/train_model.sh   # the high part with a configuration over the preset
