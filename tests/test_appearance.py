@@ -617,6 +617,7 @@ def test_pooling_thickens_each_well_toward_the_plates_tilt_only(base_scene):
 def test_lysed_speckle_is_finer_than_the_grain(base_scene):
     scene, well = base_scene
     lysed = one_lysed_well(scene, well)
+    lysed = lysed.model_copy(update={"stain": lysed.stain.model_copy(update={"lysed_foam": 0.0})})
     row, col = (int(c * TEXELS_PER_MM) for c in well.center_mm[::-1])
     reach = int(4 * TEXELS_PER_MM)
 
@@ -636,6 +637,50 @@ def test_lysed_speckle_is_finer_than_the_grain(base_scene):
     # the speckle's detail lies mostly below 0.1 mm (1.07 times what lies between 0.1 and 0.5 mm), the grain's flakes
     # above it (0.24 times)
     assert speckled[0] / speckled[1] > 2.5 * grainy[0] / grainy[1]
+
+
+def test_lysed_foam_holes_what_a_lysed_well_keeps(base_scene):
+    """``stain.lysed_foam`` multiplies a lysed well's remnant by ``1 - lysed_foam * hole``, ``hole`` the foam tile
+    (0 to 1) read at ``lysed_foam_mm / FOAM_HOLE_TEXELS`` mm per texel: at 1, most of the well is bare where the
+    holes lie, and the walls between them keep the remnant; the intact wells do not change."""
+    scene, well = base_scene
+    lysed = one_lysed_well(scene, well)
+    lysed = lysed.model_copy(update={"stain": lysed.stain.model_copy(update={"lysed_foam": 0.0, "translucency": 0.0})})
+    foamed = lysed.model_copy(update={"stain": lysed.stain.model_copy(update={"lysed_foam": 1.0, "lysed_foam_mm": 0.6})})
+    plain, holed = (-np.log(appearance.floor_transmittance(s, TEXELS_PER_MM)[..., 2].astype(np.float64))
+                    for s in (lysed, foamed))
+    x, y = well.center_mm
+    reach = int(6 * TEXELS_PER_MM)
+    window = np.s_[int(y * TEXELS_PER_MM) - reach: int(y * TEXELS_PER_MM) + reach,
+                   int(x * TEXELS_PER_MM) - reach: int(x * TEXELS_PER_MM) + reach]
+    kept = holed[window] / plain[window]
+    hole = scene_textures(foamed).foam_tile
+    # the tile's share of texels deep inside a hole (0.64), against the well's share of texels left nearly bare
+    # (0.58, read bilinearly at about one texel of the tile per texel of the floor)
+    assert np.mean(kept < 0.05) == pytest.approx(np.mean(hole > 0.95), abs=0.1)
+    assert np.mean(hole > 0.95) > 0.5  # holes cover most of the tile...
+    assert np.mean(kept > 0.95) > 0.03  # ...and walls keep the whole remnant
+    other = scene.wells[0]
+    at = int(other.center_mm[1] * TEXELS_PER_MM), int(other.center_mm[0] * TEXELS_PER_MM)
+    assert holed[at] == pytest.approx(plain[at], rel=1e-6)
+
+
+def test_the_foam_tile_is_merged_round_holes_with_thin_walls():
+    """:func:`foam_tile`: periodic holes of median radius ``FOAM_HOLE_TEXELS``, no centre inside another hole,
+    covering most of the tile; where two meet a thin wall keeps stain."""
+    from platesynth.render.textures import FOAM_HOLE_TEXELS, FOAM_TILE, foam_tile
+
+    tile = foam_tile(np.random.default_rng(7))
+    assert tile.shape == (FOAM_TILE, FOAM_TILE) and tile.dtype == np.float32
+    assert tile.min() >= 0.0 and tile.max() == pytest.approx(1.0)
+    assert np.array_equal(tile, foam_tile(np.random.default_rng(7)))
+    bare = tile > 0.95
+    assert 0.55 < bare.mean() < 0.85  # most is cleared; walls and islands of stain keep the rest
+    labels, count = ndimage.label(bare, structure=np.ones((3, 3)))
+    # the walls split the cleared area into holes, one per thrown disc or so, of about the median hole's area
+    median_area = np.median(np.bincount(labels.ravel())[1:])
+    assert count > 0.5 * tile.size / (np.pi * FOAM_HOLE_TEXELS**2 * 2.0)
+    assert 0.3 < median_area / (np.pi * FOAM_HOLE_TEXELS**2) < 1.5
 
 
 def test_the_lysed_cloud_keeps_changing_along_the_whole_plate():

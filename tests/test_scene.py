@@ -48,11 +48,11 @@ def test_presets_load_and_sample_json_roundtrip(preset):
 # sha256 of sample_scene(load_config(preset), 3).model_dump_json(): sampling must not change without intent (a change
 # here changes every dataset rendered from these presets). Update only for a deliberate change of the sampling.
 SCENE_SHA256_SEED3 = {
-    "diverse": "1ad2d18c5e21389b645f731692629a3ed5013ce06be369ef4cfa13d625826723",
-    "high": "6a36c7c25b280e8974601877e6a026b3acc099f2e9d374b2e3e7c0ea1cf8f029",
-    "lightbox12": "802eca23e9af86f3049ec8c8906ecaffea97d767fec9f7c5da1f9f33cd856c78",
-    "low": "5f6f465ed26b638a1438187c16cdf24595d595e2d9f23aab5fcd077c3cad3326",
-    "medium": "ab13dc86c4a2bf237652eaa62d5fe9b2c66eaafd665b8ac215f0b1be73727f2e",
+    "diverse": "60b583f54427844d077b0743fbe4834a841127dc99c1a5569b7879ed9b6204a8",
+    "high": "96b68ac9f99d9c515c1dc2e332130ed074958a427df818e2f4f983be350735e9",
+    "lightbox12": "ccaaf8aaf3b2b6a1f9c14f24a28e7f2ce01b38c7892371d029934e9c0aa7c8da",
+    "low": "44046e2455c0a47bc9187d72d8217efad41824b76a6c9be738b602c1531b991f",
+    "medium": "7a8d807b90e82b38500535ac9b90e100df1bba0c0994aa1e8dc356fe5c061e4a",
 }
 
 

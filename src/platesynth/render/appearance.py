@@ -2,7 +2,7 @@
 
 A well holds a stained cell monolayer. Its optical **density** at a plate point (:func:`monolayer_density`) is
 the well's density with low-frequency unevenness, an elongated darker centre, a thinner band along the rim and
-a fine drying texture; a lysed well keeps only a cloud and a network of strands; an emptied well holds nothing.
+a fine drying texture; a lysed well keeps only a cloud and a network of strands, at times holed by a foam of round clearings; an emptied well holds nothing.
 Plaques clear the layer (:func:`draw_plaques`: the exact union of overlapping plaques, each a smooth edge
 frayed by radial fibres, with a little stain left inside), scratches scrape it off and specks add to it
 (:func:`draw_capsules`). The light passing the layer follows Beer-Lambert (:func:`stain_transmittance`).
@@ -34,6 +34,7 @@ from platesynth.render.sampling import boxes_from_extents, clip01, grid_sample, 
 from platesynth.render.textures import (
     FIBRE_CELL_MM,
     FINE_CELL_MM,
+    FOAM_HOLE_TEXELS,
     FUZZ_CELL_MM,
     RESIDUAL_CELL_MM,
     WALL_GLINT_HARMONICS,
@@ -197,6 +198,8 @@ STAIN_DTYPE = np.dtype(
         ("lysed_disc", np.float64),
         ("lysed_disc_radius", np.float64),
         ("lysed_clump_level", np.float64),  # the tile's level above which a clump lies (inf: none)
+        ("lysed_foam", np.float64),
+        ("lysed_foam_cell_mm", np.float64),  # the foam tile's texel (lysed_foam_mm / FOAM_HOLE_TEXELS)
         ("absorbance_r", np.float64),  # -log of the stain's linear colour: the absorbance at density 1
         ("absorbance_g", np.float64),
         ("absorbance_b", np.float64),
@@ -355,7 +358,8 @@ def stain_table(scene: Scene, textures: SceneTextures) -> np.ndarray:
                 stain.translucency, stain.rim_mottle, stain.rim_mottle_mm, stain.rim_mottle_side,
                 math.cos(math.radians(stain.rim_mottle_angle_deg)), math.sin(math.radians(stain.rim_mottle_angle_deg)),
                 stain.rim_mottle_patches, stain.rim_mottle_grain_mm, stain.meniscus, stain.lysed_density, stain.lysed_residue, stain.lysed_strands,
-                stain.lysed_grain, stain.lysed_speckle, stain.lysed_disc, stain.lysed_disc_radius, clump_level(stain.lysed_clumps), *absorbance,
+                stain.lysed_grain, stain.lysed_speckle, stain.lysed_disc, stain.lysed_disc_radius, clump_level(stain.lysed_clumps), stain.lysed_foam,
+                stain.lysed_foam_mm / FOAM_HOLE_TEXELS, *absorbance,
                 *lysed_absorbance, scratch_shade(scene),
                 scene.plaque_look.residual_mottle,
                 scene.plaque_look.residual_tint, stain.pooling)
@@ -409,7 +413,8 @@ def well_at(u, v, a1x, a1y, pitch, rows, cols):
 
 
 @njit(cache=True, nogil=True, inline="always")
-def monolayer_density(u, v, du, dv, dist, radius, well, stain, low_grid, fibre_grid, fine_tile, mottle_tile):
+def monolayer_density(u, v, du, dv, dist, radius, well, stain, low_grid, fibre_grid, fine_tile, mottle_tile,
+                      foam_tile):
     """Density of the intact (or lysed) monolayer of ``well`` at plate point ``(u, v)``, ``(du, dv)`` from the
     well's centre at distance ``dist``, before plaques and marks; and the share of it that takes the colour of what a
     lysed well keeps (the well's flag, 0 or 1, less the clumps of intact cells in a lysed well; 1 in a lace well,
@@ -464,6 +469,9 @@ def monolayer_density(u, v, du, dv, dist, radius, well, stain, low_grid, fibre_g
             inside = clip01(0.5 + (outline - dist) / LYSED_DISC_EDGE_MM)
             remnant = (1.0 - stain.lysed_disc) * remnant + stain.lysed_disc * inside
         remnant = clip01(remnant + LYSED_STRANDS * strands)
+        if stain.lysed_foam > 0.0:  # round holes merged into a foam, thin walls of what is left between them
+            cell = stain.lysed_foam_cell_mm
+            remnant *= 1.0 - stain.lysed_foam * tile_sample(foam_tile, (u + well.noise_x) / cell, (v + well.noise_y) / cell)
         if stain.lysed_grain > 0.0:  # flakes of what is left (the mottle tile, read in another place)
             flakes = tile_sample(mottle_tile, (u + well.noise_x) / LYSED_FLAKE_CELL_MM, (v + well.noise_y) / LYSED_FLAKE_CELL_MM)
             remnant *= max(1.0 + stain.lysed_grain * flakes, 0.0)
@@ -843,7 +851,7 @@ def _capsules(grid: Sampling, segments: np.ndarray, values: np.ndarray, out: np.
 
 @njit(cache=True, nogil=True, parallel=True, fastmath=True)
 def _bake_floor(texel_mm, a1x, a1y, pitch, rows, cols, radius, wells, stain, low_grid, fibre_grid, fine_tile,
-                mottle_tile, residual_tile, clearing, rim, scratched, heaped, specks, out):
+                mottle_tile, foam_tile, residual_tile, clearing, rim, scratched, heaped, specks, out):
     height, width = out.shape[0], out.shape[1]
     margin = 2.0 * texel_mm
     for y in prange(height):
@@ -862,7 +870,7 @@ def _bake_floor(texel_mm, a1x, a1y, pitch, rows, cols, radius, wells, stain, low
                 out[y, x, 2] = 1.0
                 continue
             density, lysed = monolayer_density(u, v, du, dv, dist, radius, well, st, low_grid, fibre_grid, fine_tile,
-                                               mottle_tile)
+                                               mottle_tile, foam_tile)
             density, lysed = changed_density(density, lysed, u, v, well, st, clearing[y, x], rim[y, x], scratched[y, x], heaped[y, x],
                                              specks[y, x], residual_tile)
             r, g, b = layer_transmittance(density, st, lysed, scratched[y, x])
@@ -929,5 +937,5 @@ def floor_transmittance(scene: Scene, texels_per_mm: float, textures: SceneTextu
                                                         panel_shades(scene, wells), layer_densities(scene, wells)),
                 stain_table(scene, textures),
                 textures.low_grid, fibre_grid_or_empty(textures), textures.fine_tile, textures.mottle_tile,
-                textures.residual_tile, content.clearing, content.rim, content.scratched, content.heaped, content.specks, out)
+                textures.foam_tile, textures.residual_tile, content.clearing, content.rim, content.scratched, content.heaped, content.specks, out)
     return out

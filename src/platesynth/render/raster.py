@@ -204,7 +204,7 @@ def render_raster(scene: Scene, size: tuple[int, int] = (1024, 768)) -> RenderRe
                               appearance.layer_densities(scene, wells)), stain,
         plate_relief(scene.plate, k, scene.plate_look.labels_at_junction), marker_ink(scene, k), k, textures.low_grid,
         appearance.fibre_grid_or_empty(textures), desk_grid, desk_cell_px, textures.fine_tile,
-        textures.mottle_tile, textures.residual_tile, content.clearing, content.rim, content.scratched, content.heaped, content.specks, light_gains(scene),
+        textures.mottle_tile, textures.foam_tile, textures.residual_tile, content.clearing, content.rim, content.scratched, content.heaped, content.specks, light_gains(scene),
         gamma_lut(), image, wells_mask,
     )
     sigma = scene.camera.defocus_px * width / REFERENCE_WIDTH

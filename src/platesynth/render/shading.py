@@ -291,7 +291,7 @@ def expose(x, y, width, height, value, channel_gain, f):
 @njit(cache=True, nogil=True, parallel=True, fastmath=True)
 def shade(
     hinv, frame, desk_rgb, panel, blots, wells, stain, relief_map, ink, texels_per_mm, low_grid, fibre_grid,
-    desk_grid, desk_cell_px, fine_tile, mottle_tile, residual_tile, clearing, rim, scratched, heaped, specks, gains, gamma_lut, out, wells_mask,
+    desk_grid, desk_cell_px, fine_tile, mottle_tile, foam_tile, residual_tile, clearing, rim, scratched, heaped, specks, gains, gamma_lut, out, wells_mask,
 ):
     """Shade every pixel (linear light, then display-encoded through ``gamma_lut``) and fill the well mask.
 
@@ -343,7 +343,7 @@ def shade(
                 layer_b = 1.0
                 if disc > 0.0 and well.emptied < 0.5:
                     density, lysed = appearance.monolayer_density(u, v, du, dv, dist, f.radius, well, st, low_grid,
-                                                                  fibre_grid, fine_tile, mottle_tile)
+                                                                  fibre_grid, fine_tile, mottle_tile, foam_tile)
                     density, lysed = appearance.changed_density(density, lysed, u, v, well, st, clearing[y, x],
                                                                 rim[y, x], scratched[y, x], heaped[y, x], specks[y, x], residual_tile)
                     layer_r, layer_g, layer_b = appearance.layer_transmittance(density, st, lysed, scratched[y, x])

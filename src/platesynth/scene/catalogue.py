@@ -183,6 +183,10 @@ class StainConfig(Section):
     lysed_clumps: Dist = number(
         0.0, 0.0, 0.3, "", "share of a lysed well's area still holding clumps of intact cells: dense, dark islands of "
         "the plate's stain, a fraction of a millimetre to about two across, amid the pale film")
+    lysed_foam: Dist = number(
+        0.0, 0.0, 1.0, "", "how fully round holes clear what a lysed well keeps: a foam of merged clearings with thin "
+        "walls of stain between them, as on the blank wells of the photos (0: none; 1: the holes bare)")
+    lysed_foam_mm: Dist = number(0.5, 0.1, 3.0, "mm", "median radius of the foam's holes")
     lysed_paleness: Dist = number(
         0.0, 0.0, 1.0, "", "how far the colour of what a lysed well keeps moves from the plate's stain toward a pale, "
         "bluish one drawn from pale_hue_deg and pale_saturation (a thin film of damaged cells): 0 the plate's, 1 the pale")

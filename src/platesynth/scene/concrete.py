@@ -111,6 +111,8 @@ class Stain(_Concrete):
     lysed_disc: float = Field(0.0, description="share of what a lysed well keeps gathered in a central disc, 0..1")
     lysed_disc_radius: float = Field(0.6, description="radius of that disc, share of the well's radius")
     lysed_clumps: float = Field(0.0, description="share of a lysed well's area still holding clumps of intact cells")
+    lysed_foam: float = Field(0.0, description="how fully a foam of round holes clears what a lysed well keeps, 0..1")
+    lysed_foam_mm: float = Field(0.5, description="median radius of the foam's holes, mm")
     lysed_paleness: float = Field(
         0.0, description="how far the colour of what a lysed well keeps moves from the plate's toward the pale one, 0..1")
     lysed_hue_deg: float | None = Field(None, description="hue of the pale colour of what a lysed well keeps, degrees")

@@ -222,6 +222,8 @@ def sample_scene(config: SceneConfig, seed: int) -> Scene:
     lysed_shape = {name: c.stain.draw(name, lysed_disc) for name in ("lysed_disc", "lysed_disc_radius")}
     lysed_shape["lysed_clumps"] = c.stain.draw("lysed_clumps", scene_rng(seed, "lysed_clumps"))  # likewise
     lysed_shape["lysed_speckle"] = c.stain.draw("lysed_speckle", scene_rng(seed, "lysed_speckle"))  # likewise
+    foam = scene_rng(seed, "lysed_foam")  # likewise
+    lysed_shape.update({name: c.stain.draw(name, foam) for name in ("lysed_foam", "lysed_foam_mm")})
     stain = Stain(
         hue_deg=hue_deg,
         saturation=saturation,
