@@ -8,7 +8,7 @@ from scipy import ndimage
 
 from platesynth.render import appearance
 from platesynth.render.sampling import grid_sample
-from platesynth.render.textures import scene_textures
+from platesynth.render.textures import FOAM_HOLE_TEXELS, FOAM_TILE, foam_tile, scene_textures
 from platesynth.scene import Plaque, PlaqueLook, load_config, sample_scene
 from platesynth.scene.concrete import Artifacts, Scratch
 
@@ -668,8 +668,6 @@ def test_lysed_foam_holes_what_a_lysed_well_keeps(base_scene):
 def test_the_foam_tile_is_merged_round_holes_with_thin_walls():
     """:func:`foam_tile`: periodic holes of median radius ``FOAM_HOLE_TEXELS``, no centre inside another hole,
     covering most of the tile; where two meet a thin wall keeps stain."""
-    from platesynth.render.textures import FOAM_HOLE_TEXELS, FOAM_TILE, foam_tile
-
     tile = foam_tile(np.random.default_rng(7))
     assert tile.shape == (FOAM_TILE, FOAM_TILE) and tile.dtype == np.float32
     assert tile.min() >= 0.0 and tile.max() == pytest.approx(1.0)

@@ -2,7 +2,8 @@
 
 A well holds a stained cell monolayer. Its optical **density** at a plate point (:func:`monolayer_density`) is
 the well's density with low-frequency unevenness, an elongated darker centre, a thinner band along the rim and
-a fine drying texture; a lysed well keeps only a cloud and a network of strands, at times holed by a foam of round clearings; an emptied well holds nothing.
+a fine drying texture; a lysed well keeps only a cloud and a network of strands, at times holed by a foam of round
+clearings; an emptied well holds nothing.
 Plaques clear the layer (:func:`draw_plaques`: the exact union of overlapping plaques, each a smooth edge
 frayed by radial fibres, with a little stain left inside), scratches scrape it off and specks add to it
 (:func:`draw_capsules`). The light passing the layer follows Beer-Lambert (:func:`stain_transmittance`).

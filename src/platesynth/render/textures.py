@@ -77,14 +77,16 @@ def foam_tile(rng: np.random.Generator) -> np.ndarray:
     wanted = int(round(FOAM_COVERAGE * FOAM_TILE**2 / mean_area))
     candidates = rng.uniform(0.0, FOAM_TILE, (4 * wanted, 2))
     candidate_radii = FOAM_HOLE_TEXELS * np.exp(FOAM_RADIUS_SPREAD * rng.standard_normal(4 * wanted))
-    centres, radii = np.empty((0, 2)), np.empty(0)
+    centres, radii, kept = np.empty((wanted, 2)), np.empty(wanted), 0
     for centre, radius in zip(candidates, candidate_radii):
-        apart = np.abs(centres - centre)
+        apart = np.abs(centres[:kept] - centre)
         apart = np.minimum(apart, FOAM_TILE - apart)  # periodic
-        if np.all(np.hypot(apart[:, 0], apart[:, 1]) > FOAM_SEPARATION * (radii + radius)):
-            centres, radii = np.vstack([centres, centre]), np.append(radii, radius)
-            if len(radii) == wanted:
+        if np.all(np.hypot(apart[:, 0], apart[:, 1]) > FOAM_SEPARATION * (radii[:kept] + radius)):
+            centres[kept], radii[kept] = centre, radius
+            kept += 1
+            if kept == wanted:
                 break
+    centres, radii = centres[:kept], radii[:kept]
     deepest = np.full((FOAM_TILE, FOAM_TILE), -FOAM_TILE, dtype=np.float64)
     second = deepest.copy()
     for (cx, cy), radius in zip(centres, radii):
@@ -144,10 +146,11 @@ def scene_textures(scene: Scene) -> SceneTextures:
     def plate_grid(cell_mm: float) -> tuple[int, int]:
         return int(plate.width_mm / cell_mm) + 3, int(plate.length_mm / cell_mm) + 3
 
+    lysed_film = any(w.lysed_film for w in scene.wells)
     fibre_grid = None
-    if any(w.lysed_film for w in scene.wells):
+    if lysed_film:
         fibre_grid = noise_grid(scene_rng(seed, "fibres"), plate_grid(FIBRE_CELL_MM), 2.0)
-    foamed = scene.stain.lysed_foam > 0.0 and any(w.lysed_film for w in scene.wells)
+    foamed = lysed_film and scene.stain.lysed_foam > 0.0
     return SceneTextures(
         well_offsets=scene_rng(seed, "well_offsets").uniform(0.0, WELL_OFFSET_RANGE_MM, (len(scene.wells), 2)),
         low_grid=noise_grid(scene_rng(seed, "unevenness"), plate_grid(low_cell), 1.5),
