@@ -12,6 +12,11 @@ Run: ``python benchmarks/well_contact_sheet.py --out sheet.png`` (``--preset hig
 scenes: by default every sheet draws its renders from the scenes 10000, 10001, ...). A judge's answers, one line per
 tile in the key's form (``row 0, column 3: real``), are scored against the key with ``--score ANSWERS.txt --out
 sheet.png``.
+
+Each key line also names what its tile shows (``row 0, column 3: real | photo PR8, 0 plaques | PR8_plate4.jpg B2``;
+a render's class says whether its plate is a pale or a saturated one and whether the well is lysed), so that
+``--breakdown SHEET.png=ANSWERS.txt ...`` can count the calls right per class of tile over many sheets and judges:
+which renders are found, and which photos are doubted.
 """
 
 from __future__ import annotations
@@ -28,27 +33,87 @@ SHARED = Path(os.environ.get("PLATESYNTH_SHARED", ROOT.parent / "shared"))
 
 
 TILE_LINE = re.compile(r"row (\d+), column (\d+): (real|synthetic)")
+KEY_CLASS = re.compile(r"^row (\d+), column (\d+): (?:real|synthetic) \| ([^|]+?) \|", re.MULTILINE)
+# a scene whose stain is less saturated than this is one of the pale, bluish plates (stain.pale_plates): the
+# threshold lies between the catalogue's pale_saturation (0.45-0.7) and saturation (0.9-1.0)
+PALE_SATURATION = 0.8
+
+
+def count_class(count: int | None) -> str:
+    """A well's plaque count in the classes the breakdown groups by (``None``: a well judged uncountable)."""
+    if count is None:
+        return "uncountable"
+    if count == 0:
+        return "0 plaques"
+    return "1-10 plaques" if count <= 10 else "over 10 plaques"
+
+
+def photo_class(name: str, count: int | None) -> str:
+    """The class of a photo's well: its virus (the photo's name up to ``_``) and its person's count."""
+    return f"photo {name.split('_')[0]}, {count_class(count)}"
+
+
+def render_class(scene, well) -> str:
+    """The class of a render's well: a pale or a saturated plate, and its plaque count (lysed: uncountable)."""
+    plate = "pale" if scene.stain.saturation < PALE_SATURATION else "saturated"
+    count = sum(plaque.well == well.id for plaque in scene.plaques) if well.countable else None
+    return f"render {plate} plate, {count_class(count)}"
+
+
+def _read_key(key_path: Path) -> dict[tuple[str, str], str]:
+    if not key_path.is_file():
+        raise SystemExit(f"{key_path}: no such file (the key is written beside the sheet, as SHEET.png.key.txt)")
+    return {(r, c): kind for r, c, kind in TILE_LINE.findall(key_path.read_text())}
+
+
+def _read_answers(answers_path: Path, key: dict[tuple[str, str], str], key_path: Path) -> dict[tuple[str, str], str]:
+    if not answers_path.is_file():
+        raise SystemExit(f"{answers_path}: no such file")
+    answers = {(r, c): kind for r, c, kind in TILE_LINE.findall(answers_path.read_text())}
+    if set(answers) != set(key):
+        raise SystemExit(f"{answers_path}: {len(answers)} answers for the {len(key)} tiles of {key_path}")
+    return answers
 
 
 def score(key_path: Path, answers_path: Path) -> str:
     """How many of a judge's answers match the key: in all, among the renders and among the photos."""
-    for path in (key_path, answers_path):
-        if not path.is_file():
-            raise SystemExit(f"{path}: no such file (the key is written beside the sheet, as SHEET.png.key.txt)")
-    key = {(r, c): kind for r, c, kind in TILE_LINE.findall(key_path.read_text())}
-    answers = {(r, c): kind for r, c, kind in TILE_LINE.findall(answers_path.read_text())}
-    if set(answers) != set(key):
-        raise SystemExit(f"{answers_path}: {len(answers)} answers for the {len(key)} tiles of {key_path}")
+    key = _read_key(key_path)
+    answers = _read_answers(answers_path, key, key_path)
     right = {kind: sum(answers[t] == kind for t in key if key[t] == kind) for kind in ("synthetic", "real")}
     total = {kind: sum(kind == k for k in key.values()) for kind in ("synthetic", "real")}
     return (f"{sum(right.values())}/{len(key)} right: {right['synthetic']}/{total['synthetic']} renders found, "
             f"{right['real']}/{total['real']} photos called real (chance: half)")
 
 
+def breakdown(pairs: list[tuple[Path, Path]]) -> str:
+    """Calls right per class of tile over (key, answers) pairs: a table of class, tiles judged and share right.
+
+    A render is called right when found (called synthetic), a photo when called real; a class where most calls are
+    right is one that the judges tell apart.
+    """
+    right: dict[str, int] = {}
+    judged: dict[str, int] = {}
+    for key_path, answers_path in pairs:
+        key = _read_key(key_path)
+        classes = {(r, c): name for r, c, name in KEY_CLASS.findall(key_path.read_text())}
+        if set(classes) != set(key):
+            raise SystemExit(f"{key_path}: a key without the tiles' classes (made before they were written); make the "
+                             "sheet again with the same options")
+        answers = _read_answers(answers_path, key, key_path)
+        for tile, kind in key.items():
+            judged[classes[tile]] = judged.get(classes[tile], 0) + 1
+            right[classes[tile]] = right.get(classes[tile], 0) + (answers[tile] == kind)
+    width = max(map(len, judged))
+    lines = [f"{'class':<{width}}  calls  right", *(
+        f"{name:<{width}}  {judged[name]:5d}  {right[name]:5d} ({right[name] / judged[name]:.0%})"
+        for name in sorted(judged))]
+    return "\n".join(lines)
+
+
 def main(argv: list[str] | None = None) -> None:
     """Write the sheet and its key, or score a judge's answers against the key."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--out", type=Path, required=True, help="PNG to write (the key goes to OUT.key.txt)")
+    parser.add_argument("--out", type=Path, help="PNG to write (the key goes to OUT.key.txt)")
     parser.add_argument("--preset", default="high")
     parser.add_argument("--config", type=Path, help="a YAML scene configuration applied over the preset")
     parser.add_argument("--wells", type=int, default=24, help="wells of each kind")
@@ -58,7 +123,17 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--first-scene", type=int, default=10_000,
                         help="seed of the first rendered scene (the renders are of scenes FIRST, FIRST + 1, ...)")
     parser.add_argument("--score", type=Path, help="a judge's answers to score against OUT's key (writes nothing)")
+    parser.add_argument("--breakdown", nargs="+", metavar="SHEET=ANSWERS",
+                        help="calls right per class of tile over these sheets' judges (writes nothing; no --out)")
     args = parser.parse_args(argv)
+    if args.breakdown:
+        pairs = [item.split("=", 1) for item in args.breakdown]
+        if any(len(pair) != 2 for pair in pairs):
+            raise SystemExit("--breakdown takes SHEET.png=ANSWERS.txt pairs")
+        print(breakdown([(Path(f"{sheet}.key.txt"), Path(answers)) for sheet, answers in pairs]))
+        return
+    if args.out is None:
+        parser.error("--out is required (the sheet to write, or the sheet whose key --score reads)")
     if args.score:
         print(score(Path(f"{args.out}.key.txt"), args.score))
         return
@@ -66,21 +141,27 @@ def main(argv: list[str] | None = None) -> None:
     import numpy as np
     from PIL import Image
 
+    from platesynth.data.layout import read_counts_csv
     from platesynth.io import list_images, read_image
     from platesynth.metrics import crop_well, fit_plate_grid
     from platesynth.render.raster import render_raster
     from platesynth.scene import load_config, sample_scene
 
     rng = np.random.default_rng(args.seed)
-    plates = [p for p in list_images(SHARED / "data" / "plaque12" / "plates") if in_split(p.name, args.split)]
+    root = SHARED / "data" / "plaque12"
+    plates = [p for p in list_images(root / "plates") if in_split(p.name, args.split)]
     if not plates:
         raise SystemExit(f"no real photos of the {args.split} split under {SHARED}")
+    counts = {(row.image, row.row, row.col): row for row in read_counts_csv(root / "counts.csv")}
+    grid = (3, 4)  # the shared photos' 12-well plates; fit_plate_grid numbers the discs row by row
     real = []
     for path in rng.permutation(plates):
         image = read_image(path)
-        discs = fit_plate_grid(image)
+        discs = fit_plate_grid(image, grid)
         for index in rng.permutation(len(discs))[:3]:
-            real.append(crop_well(image, discs[index], args.tile))
+            well = counts[(path.name, *divmod(int(index), grid[1]))]
+            real.append((crop_well(image, discs[index], args.tile),
+                         f"{photo_class(path.name, well.count)} | {path.name} {well.well}"))
         if len(real) >= args.wells:
             break
     synthetic = []
@@ -92,17 +173,20 @@ def main(argv: list[str] | None = None) -> None:
         image = render_raster(scene, (1216, 944)).image
         discs = fit_plate_grid(image, (scene.plate.rows, scene.plate.cols))
         for index in rng.permutation(len(discs))[:3]:
-            synthetic.append(crop_well(image, discs[index], args.tile))
-    tiles = [(tile, "real") for tile in real[: args.wells]] + [(tile, "synthetic") for tile in synthetic[: args.wells]]
+            well = scene.wells[index]
+            synthetic.append((crop_well(image, discs[index], args.tile),
+                              f"{render_class(scene, well)} | scene {args.first_scene + seed - 1} {well.label}"))
+    tiles = ([(*tile, "real") for tile in real[: args.wells]]
+             + [(*tile, "synthetic") for tile in synthetic[: args.wells]])
     order = rng.permutation(len(tiles))
     columns = 8
     rows = -(-len(tiles) // columns)
     sheet = Image.new("RGB", (columns * args.tile, rows * args.tile), (255, 255, 255))
     key = []
     for position, index in enumerate(order):
-        tile, kind = tiles[index]
+        tile, what, kind = tiles[index]
         sheet.paste(Image.fromarray(tile), ((position % columns) * args.tile, (position // columns) * args.tile))
-        key.append(f"row {position // columns}, column {position % columns}: {kind}")
+        key.append(f"row {position // columns}, column {position % columns}: {kind} | {what}")
     args.out.parent.mkdir(parents=True, exist_ok=True)
     sheet.save(args.out)
     Path(f"{args.out}.key.txt").write_text("\n".join(key) + "\n")

@@ -32,3 +32,51 @@ def test_score_refuses_answers_that_miss_tiles(sheet, tmp_path):
         sheet.score(key, answers)
     with pytest.raises(SystemExit, match="other.png.key.txt: no such file"):
         sheet.score(tmp_path / "other.png.key.txt", answers)
+
+
+def test_count_classes_and_tile_classes(sheet):
+    assert [sheet.count_class(n) for n in (None, 0, 1, 10, 11)] == [
+        "uncountable", "0 plaques", "1-10 plaques", "1-10 plaques", "over 10 plaques"]
+    assert sheet.photo_class("PR8_plate4.jpg", 12) == "photo PR8, over 10 plaques"
+    assert sheet.photo_class("IBV_plate1.jpg", None) == "photo IBV, uncountable"
+
+
+def test_render_class_names_the_plate_and_the_wells_plaques(sheet):
+    from platesynth.scene import load_config, sample_scene
+
+    scene = sample_scene(load_config("high"), 3)
+    for well in scene.wells:
+        name = sheet.render_class(scene, well)
+        plate = "pale" if scene.stain.saturation < sheet.PALE_SATURATION else "saturated"
+        plaques = sum(p.well == well.id for p in scene.plaques)
+        expected = "uncountable" if not well.countable else sheet.count_class(plaques)
+        assert name == f"render {plate} plate, {expected}"
+
+
+def test_breakdown_counts_calls_right_per_class_over_sheets(sheet, tmp_path):
+    classes = ["photo PR8, 0 plaques", "render saturated plate, 0 plaques", "photo PR8, 0 plaques",
+               "render pale plate, uncountable"]
+    kinds = ["real", "synthetic", "real", "synthetic"]
+    pairs = []
+    for judge, said in enumerate((["real", "synthetic", "synthetic", "real"],
+                                  ["real", "real", "real", "synthetic"])):
+        key = tmp_path / f"s{judge}.png.key.txt"
+        key.write_text("".join(f"row 0, column {i}: {k} | {c} | photo.jpg A{i}\n"
+                               for i, (k, c) in enumerate(zip(kinds, classes))))
+        answers = tmp_path / f"a{judge}.txt"
+        answers.write_text("".join(f"row 0, column {i}: {k}\n" for i, k in enumerate(said)))
+        pairs.append((key, answers))
+    table = sheet.breakdown(pairs).splitlines()
+    assert table[0].split() == ["class", "calls", "right"]
+    assert [" ".join(line.split()) for line in table[1:]] == [
+        "photo PR8, 0 plaques 4 3 (75%)", "render pale plate, uncountable 2 1 (50%)",
+        "render saturated plate, 0 plaques 2 1 (50%)"]
+
+
+def test_breakdown_refuses_a_key_without_classes(sheet, tmp_path):
+    key = tmp_path / "old.png.key.txt"
+    key.write_text("row 0, column 0: real\n")
+    answers = tmp_path / "answers.txt"
+    answers.write_text("row 0, column 0: real\n")
+    with pytest.raises(SystemExit, match="without the tiles' classes"):
+        sheet.breakdown([(key, answers)])
