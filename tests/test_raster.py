@@ -530,3 +530,24 @@ def test_well_labels_sit_where_four_wells_meet_with_a_rib_to_their_well():
         assert min(ink(relief, cx + dx, cy + dy) for dx, dy in ((reach, 0), (-reach, 0), (0, reach), (0, -reach))) > 0.2
     rib = 0.5 * (0.11 * pitch / np.sqrt(2.0) + 0.5 * pitch - (plate.well_radius_mm + plate.wall_mm) / np.sqrt(2.0))
     assert ink(at_junction, x + rib, y + rib) > 0.2 and ink(near_well, x + rib, y + rib) == 0.0
+
+
+@pytest.mark.parametrize(("angle", "darker"), [(90.0, "bottom"), (270.0, "top"), (0.0, "left"), (180.0, "right")])
+def test_the_side_a_plate_was_tilted_to_faces_the_image_as_documented(angle, darker):
+    """``stain.rim_mottle_angle_deg`` as the catalogue describes it for a plate seen from below: 0 the image's left,
+    90 its bottom. With the dye pooled there (``stain.pooling``), every well's red is lower on that side than on
+    the opposite one."""
+    overrides = {"stain.pooling": 1.0, "stain.rim_mottle_angle_deg": angle, "camera.from_below": 1.0,
+                 "camera.rotation_deg": 0.0, "camera.tilt_deg": 0.0, "wells.emptied": 0.0,
+                 "plaques.negative_plate": 1.0}
+    scene = small_scene("high", 5, **overrides)
+    result = render(scene, (512, 384))
+    red = result.image[..., 0].astype(float)
+    opposite = {"bottom": "top", "top": "bottom", "left": "right", "right": "left"}
+    for well in scene.wells:
+        rows, cols = np.nonzero(ndimage.binary_erosion(result.wells == well.id, iterations=2))
+        dy, dx = rows - rows.mean(), cols - cols.mean()
+        reach = 0.6 * (rows.max() - rows.min()) / 2
+        side = {"bottom": dy > reach, "top": dy < -reach, "right": dx > reach, "left": dx < -reach}
+        assert red[rows[side[darker]], cols[side[darker]]].mean() < red[rows[side[opposite[darker]]],
+                                                                        cols[side[opposite[darker]]]].mean() - 3

@@ -156,6 +156,10 @@ class StainConfig(Section):
     rim_mottle_side: Dist = number(
         0.0, 0.0, 1.0, "", "how one-sided the mottled band is: 0 even all around, 1 only on the side of each well that "
         "faces one direction of the plate (drawn per plate: the side toward which the plate was tilted to empty it)")
+    rim_mottle_angle_deg: Dist = number(
+        [0.0, 360.0], 0.0, 360.0, "deg", "direction of the side the plate was tilted to, where each well's mottled band "
+        "is strongest and its dye pooled (rim_mottle_side, pooling), drawn per plate: plate x axis 0, y axis 90 (a "
+        "plate photographed from below, as the raster camera frames it: 0 the image's left, 90 its bottom)")
     rim_mottle_patches: Dist = number(
         0.0, 0.0, 1.0, "", "how patchy the mottled band is along the rim: 0 the same all round, 1 in stretches of a few "
         "millimetres with about half the rim bare (sheets of cells that came loose here and there)")

@@ -362,7 +362,7 @@ def sample_scene(config: SceneConfig, seed: int) -> Scene:
                                 for name, stream in PLAQUE_LOOK_OWN_STREAM.items()})
     stain = stain.model_copy(update={name: c.stain.draw(name, rng) for name in STAIN_DRAWN_LAST})
     rim_band = scene_rng(seed, "rim_band")  # drawn beside the main order: scenes drawn before stay
-    side_angle = round(float(rim_band.uniform(0.0, 360.0)), 2)  # first: a fixed setting below draws nothing
+    side_angle = round(c.stain.draw("rim_mottle_angle_deg", rim_band), 2)  # first: a fixed setting below draws nothing
     stain = stain.model_copy(update={"rim_mottle_angle_deg": side_angle,
                                      "rim_mottle_side": c.stain.draw("rim_mottle_side", rim_band),
                                      "meniscus": c.stain.draw("meniscus", rim_band),
