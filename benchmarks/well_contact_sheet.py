@@ -13,10 +13,11 @@ scenes: by default every sheet draws its renders from the scenes 10000, 10001, .
 tile in the key's form (``row 0, column 3: real``), are scored against the key with ``--score ANSWERS.txt --out
 sheet.png``.
 
-Each key line also names what its tile shows (``row 0, column 3: real | photo PR8, 0 plaques | PR8_plate4.jpg B2``;
-a render's class says whether its plate is a pale or a saturated one and whether the well is lysed), so that
-``--breakdown SHEET.png=ANSWERS.txt ...`` can count the calls right per class of tile over many sheets and judges:
-which renders are found, and which photos are doubted.
+Each key line also names what its tile shows: its class, its plate and well, and the median 8-bit colour of the
+middle of the tile (``row 0, column 3: real | photo PR8, 0 plaques | PR8_plate4.jpg B2 | centre RGB 80 0 218``; a
+render's class says whether its plate is a pale or a saturated one and whether the well is lysed), so that
+``--breakdown SHEET.png=ANSWERS.txt ...`` can count the calls right per class of tile over many sheets and judges
+(``--by plate``: per photo or rendered scene): which renders are found, and which photos are doubted.
 """
 
 from __future__ import annotations
@@ -33,7 +34,10 @@ SHARED = Path(os.environ.get("PLATESYNTH_SHARED", ROOT.parent / "shared"))
 
 
 TILE_LINE = re.compile(r"row (\d+), column (\d+): (real|synthetic)")
-KEY_CLASS = re.compile(r"^row (\d+), column (\d+): (?:real|synthetic) \| ([^|]+?) \|", re.MULTILINE)
+KEY_FIELDS = re.compile(r"^row (\d+), column (\d+): (?:real|synthetic) \| ([^|]+?) \| (\S+(?: \d+)?)", re.MULTILINE)
+"""A key line's tile, class and plate (a photo's file name, or ``scene N``)."""
+CENTRE = 0.3
+"""Half-side of the middle of a tile whose median colour a key line gives, share of the tile's side."""
 # a scene whose stain is less saturated than this is one of the pale, bluish plates (stain.pale_plates): the
 # threshold lies between the catalogue's pale_saturation (0.45-0.7) and saturation (0.9-1.0)
 PALE_SATURATION = 0.8
@@ -85,17 +89,28 @@ def score(key_path: Path, answers_path: Path) -> str:
             f"{right['real']}/{total['real']} photos called real (chance: half)")
 
 
-def breakdown(pairs: list[tuple[Path, Path]]) -> str:
-    """Calls right per class of tile over (key, answers) pairs: a table of class, tiles judged and share right.
+def centre_colour(tile) -> str:
+    """The median 8-bit RGB of the middle of a tile (its central ``2 * CENTRE`` of each side), as a key line gives it."""
+    import numpy as np
 
-    A render is called right when found (called synthetic), a photo when called real; a class where most calls are
+    side = tile.shape[0]
+    low, high = round(side * (0.5 - CENTRE)), round(side * (0.5 + CENTRE))
+    return "centre RGB " + " ".join(str(int(v)) for v in np.median(tile[low:high, low:high].reshape(-1, 3), axis=0))
+
+
+def breakdown(pairs: list[tuple[Path, Path]], by: str = "class") -> str:
+    """Calls right per class of tile (``by="class"``) or per plate (``"plate"``: a photo, or a rendered scene) over
+    (key, answers) pairs: a table of the group, tiles judged and calls right.
+
+    A render is called right when found (called synthetic), a photo when called real; a group where most calls are
     right is one that the judges tell apart.
     """
     right: dict[str, int] = {}
     judged: dict[str, int] = {}
     for key_path, answers_path in pairs:
         key = _read_key(key_path)
-        classes = {(r, c): name for r, c, name in KEY_CLASS.findall(key_path.read_text())}
+        fields = {(r, c): (name, plate) for r, c, name, plate in KEY_FIELDS.findall(key_path.read_text())}
+        classes = {tile: name if by == "class" else plate for tile, (name, plate) in fields.items()}
         if set(classes) != set(key):
             raise SystemExit(f"{key_path}: a key without the tiles' classes (made before they were written); make the "
                              "sheet again with the same options")
@@ -104,7 +119,7 @@ def breakdown(pairs: list[tuple[Path, Path]]) -> str:
             judged[classes[tile]] = judged.get(classes[tile], 0) + 1
             right[classes[tile]] = right.get(classes[tile], 0) + (answers[tile] == kind)
     width = max(map(len, judged))
-    lines = [f"{'class':<{width}}  calls  right", *(
+    lines = [f"{by:<{width}}  calls  right", *(
         f"{name:<{width}}  {judged[name]:5d}  {right[name]:5d} ({right[name] / judged[name]:.0%})"
         for name in sorted(judged))]
     return "\n".join(lines)
@@ -125,12 +140,14 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--score", type=Path, help="a judge's answers to score against OUT's key (writes nothing)")
     parser.add_argument("--breakdown", nargs="+", metavar="SHEET=ANSWERS",
                         help="calls right per class of tile over these sheets' judges (writes nothing; no --out)")
+    parser.add_argument("--by", choices=("class", "plate"), default="class",
+                        help="group --breakdown's calls by class of tile or by plate (photo or rendered scene)")
     args = parser.parse_args(argv)
     if args.breakdown:
         pairs = [item.split("=", 1) for item in args.breakdown]
         if any(len(pair) != 2 for pair in pairs):
             raise SystemExit("--breakdown takes SHEET.png=ANSWERS.txt pairs")
-        print(breakdown([(Path(f"{sheet}.key.txt"), Path(answers)) for sheet, answers in pairs]))
+        print(breakdown([(Path(f"{sheet}.key.txt"), Path(answers)) for sheet, answers in pairs], by=args.by))
         return
     if args.out is None:
         parser.error("--out is required (the sheet to write, or the sheet whose key --score reads)")
@@ -160,8 +177,8 @@ def main(argv: list[str] | None = None) -> None:
         discs = fit_plate_grid(image, grid)
         for index in rng.permutation(len(discs))[:3]:
             well = counts[(path.name, *divmod(int(index), grid[1]))]
-            real.append((crop_well(image, discs[index], args.tile),
-                         f"{photo_class(path.name, well.count)} | {path.name} {well.well}"))
+            tile = crop_well(image, discs[index], args.tile)
+            real.append((tile, f"{photo_class(path.name, well.count)} | {path.name} {well.well} | {centre_colour(tile)}"))
         if len(real) >= args.wells:
             break
     synthetic = []
@@ -174,8 +191,9 @@ def main(argv: list[str] | None = None) -> None:
         discs = fit_plate_grid(image, (scene.plate.rows, scene.plate.cols))
         for index in rng.permutation(len(discs))[:3]:
             well = scene.wells[index]
-            synthetic.append((crop_well(image, discs[index], args.tile),
-                              f"{render_class(scene, well)} | scene {args.first_scene + seed - 1} {well.label}"))
+            tile = crop_well(image, discs[index], args.tile)
+            synthetic.append((tile, f"{render_class(scene, well)} | scene {args.first_scene + seed - 1} {well.label} | "
+                                    f"{centre_colour(tile)}"))
     tiles = ([(*tile, "real") for tile in real[: args.wells]]
              + [(*tile, "synthetic") for tile in synthetic[: args.wells]])
     order = rng.permutation(len(tiles))

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import numpy as np
 import pytest
 
 from _benchmarks import benchmark_module
@@ -57,12 +58,13 @@ def test_breakdown_counts_calls_right_per_class_over_sheets(sheet, tmp_path):
     classes = ["photo PR8, 0 plaques", "render saturated plate, 0 plaques", "photo PR8, 0 plaques",
                "render pale plate, uncountable"]
     kinds = ["real", "synthetic", "real", "synthetic"]
+    plates = ["PR8_plate4.jpg", "scene 10002", "PR8_plate9.jpg", "scene 10002"]
     pairs = []
     for judge, said in enumerate((["real", "synthetic", "synthetic", "real"],
                                   ["real", "real", "real", "synthetic"])):
         key = tmp_path / f"s{judge}.png.key.txt"
-        key.write_text("".join(f"row 0, column {i}: {k} | {c} | photo.jpg A{i}\n"
-                               for i, (k, c) in enumerate(zip(kinds, classes))))
+        key.write_text("".join(f"row 0, column {i}: {k} | {c} | {plate} A{i} | centre RGB 80 0 218\n"
+                               for i, (k, c, plate) in enumerate(zip(kinds, classes, plates))))
         answers = tmp_path / f"a{judge}.txt"
         answers.write_text("".join(f"row 0, column {i}: {k}\n" for i, k in enumerate(said)))
         pairs.append((key, answers))
@@ -71,6 +73,18 @@ def test_breakdown_counts_calls_right_per_class_over_sheets(sheet, tmp_path):
     assert [" ".join(line.split()) for line in table[1:]] == [
         "photo PR8, 0 plaques 4 3 (75%)", "render pale plate, uncountable 2 1 (50%)",
         "render saturated plate, 0 plaques 2 1 (50%)"]
+    by_plate = sheet.breakdown(pairs, by="plate").splitlines()
+    assert by_plate[0].split() == ["plate", "calls", "right"]
+    assert [" ".join(line.split()) for line in by_plate[1:]] == [
+        "PR8_plate4.jpg 2 2 (100%)", "PR8_plate9.jpg 2 1 (50%)", "scene 10002 4 2 (50%)"]
+
+
+def test_a_key_line_gives_the_median_colour_of_the_tiles_middle(sheet):
+    tile = np.zeros((10, 10, 3), np.uint8)
+    tile[...] = (200, 200, 200)  # the border, outside the middle 6x6
+    tile[2:8, 2:8] = (80, 0, 218)
+    tile[2, 2] = (255, 255, 255)  # one odd pixel does not move the median
+    assert sheet.centre_colour(tile) == "centre RGB 80 0 218"
 
 
 def test_breakdown_refuses_a_key_without_classes(sheet, tmp_path):
