@@ -41,6 +41,8 @@ CENTRE = 0.3
 # a scene whose stain is less saturated than this is one of the pale, bluish plates (stain.pale_plates): the
 # threshold lies between the catalogue's pale_saturation (0.45-0.7) and saturation (0.9-1.0)
 PALE_SATURATION = 0.8
+MAX_SCENES = 1000
+"""Scenes a sheet renders at most looking for wells that match ``--renders``."""
 
 
 def count_class(count: int | None) -> str:
@@ -137,6 +139,10 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--seed", type=int, default=0, help="seed of the choice of photos, wells and their order")
     parser.add_argument("--first-scene", type=int, default=10_000,
                         help="seed of the first rendered scene (the renders are of scenes FIRST, FIRST + 1, ...)")
+    parser.add_argument("--photos", default="",
+                        help="only photo wells whose class matches this regular expression (e.g. 'PR8|Brisbane')")
+    parser.add_argument("--renders", default="",
+                        help="only rendered wells whose class matches this regular expression (e.g. 'saturated')")
     parser.add_argument("--score", type=Path, help="a judge's answers to score against OUT's key (writes nothing)")
     parser.add_argument("--breakdown", nargs="+", metavar="SHEET=ANSWERS",
                         help="calls right per class of tile over these sheets' judges (writes nothing; no --out)")
@@ -171,25 +177,39 @@ def main(argv: list[str] | None = None) -> None:
         raise SystemExit(f"no real photos of the {args.split} split under {SHARED}")
     counts = {(row.image, row.row, row.col): row for row in read_counts_csv(root / "counts.csv")}
     grid = (3, 4)  # the shared photos' 12-well plates; fit_plate_grid numbers the discs row by row
+    photos_wanted, renders_wanted = re.compile(args.photos), re.compile(args.renders)
     real = []
     for path in rng.permutation(plates):
+        wells = [counts[(path.name, *divmod(index, grid[1]))] for index in range(grid[0] * grid[1])]
+        chosen = [int(i) for i in rng.permutation(len(wells))
+                  if photos_wanted.search(photo_class(path.name, wells[i].count))][:3]
+        if not chosen:
+            continue
         image = read_image(path)
         discs = fit_plate_grid(image, grid)
-        for index in rng.permutation(len(discs))[:3]:
-            well = counts[(path.name, *divmod(int(index), grid[1]))]
+        for index in chosen:
             tile = crop_well(image, discs[index], args.tile)
-            real.append((tile, f"{photo_class(path.name, well.count)} | {path.name} {well.well} | {centre_colour(tile)}"))
+            real.append((tile, f"{photo_class(path.name, wells[index].count)} | {path.name} {wells[index].well} | "
+                               f"{centre_colour(tile)}"))
         if len(real) >= args.wells:
             break
+    if len(real) < args.wells:
+        raise SystemExit(f"only {len(real)} photo wells of the {args.split} split match --photos {args.photos!r}")
     synthetic = []
     config = load_config(args.preset, path=args.config)
     seed = 0
     while len(synthetic) < args.wells:
+        if seed == MAX_SCENES:
+            raise SystemExit(f"only {len(synthetic)} wells of {MAX_SCENES} scenes match --renders {args.renders!r}")
         scene = sample_scene(config, args.first_scene + seed)
         seed += 1
+        chosen = [int(i) for i in rng.permutation(len(scene.wells))
+                  if renders_wanted.search(render_class(scene, scene.wells[i]))][:3]
+        if not chosen:
+            continue
         image = render_raster(scene, (1216, 944)).image
         discs = fit_plate_grid(image, (scene.plate.rows, scene.plate.cols))
-        for index in rng.permutation(len(discs))[:3]:
+        for index in chosen:
             well = scene.wells[index]
             tile = crop_well(image, discs[index], args.tile)
             synthetic.append((tile, f"{render_class(scene, well)} | scene {args.first_scene + seed - 1} {well.label} | "

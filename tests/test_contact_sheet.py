@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -94,3 +96,19 @@ def test_breakdown_refuses_a_key_without_classes(sheet, tmp_path):
     answers.write_text("row 0, column 0: real\n")
     with pytest.raises(SystemExit, match="without the tiles' classes"):
         sheet.breakdown([(key, answers)])
+
+
+def test_a_sheet_of_chosen_classes_holds_only_those_tiles(sheet, tmp_path):
+    """``--photos`` and ``--renders`` keep the wells whose class matches; each key line names a matching class."""
+    from conftest import shared_path
+
+    shared_path("data", "plaque12", "counts.csv")
+    out = tmp_path / "sheet.png"
+    sheet.main(["--out", str(out), "--split", "check", "--wells", "3", "--tile", "64", "--seed", "2",
+                "--photos", "PR8, 0 plaques", "--renders", "saturated plate, 0 plaques"])
+    lines = Path(f"{out}.key.txt").read_text().splitlines()
+    assert len(lines) == 6
+    assert sorted(line.split(" | ")[1] for line in lines) == (
+        ["photo PR8, 0 plaques"] * 3 + ["render saturated plate, 0 plaques"] * 3)
+    with pytest.raises(SystemExit, match="only 0 photo wells of the check split match"):
+        sheet.main(["--out", str(tmp_path / "none.png"), "--split", "check", "--photos", "IBV"])
