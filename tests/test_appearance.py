@@ -614,6 +614,27 @@ def test_pooling_thickens_each_well_toward_the_plates_tilt_only(base_scene):
         assert thick[across] == pytest.approx(plain[across], rel=1e-3)
 
 
+
+def test_the_layers_blotches_dim_every_channel_alike_as_asked(base_scene):
+    """``stain.unevenness_light`` multiplies a well floor's light, in all three channels, by ``1 - unevenness_light *
+    unevenness * n``, ``n`` the noise of the layer's blotches there (the same noise that varies its density)."""
+    scene, _ = base_scene
+    scene = scene.model_copy(update={"plaques": ()})
+    lit = scene.model_copy(update={"stain": scene.stain.model_copy(update={"unevenness_light": 0.5})})
+    textures = scene_textures(scene)
+    plain, dimmed = (appearance.floor_transmittance(s, TEXELS_PER_MM, textures) for s in (scene, lit))
+    cell = textures.low_cell_mm
+    for well in (scene.wells[0], scene.wells[7]):
+        x, y = well.center_mm
+        for dx, dy in ((0.0, 0.0), (3.1, -2.4), (-5.3, 4.7)):
+            row, col = int((y + dy) * TEXELS_PER_MM), int((x + dx) * TEXELS_PER_MM)
+            u, v = (col + 0.5) / TEXELS_PER_MM, (row + 0.5) / TEXELS_PER_MM
+            blotch = grid_sample(textures.low_grid, u / cell, v / cell)
+            expected = 1.0 - 0.5 * scene.stain.unevenness * blotch
+            assert dimmed[row, col] / plain[row, col] == pytest.approx([expected] * 3, rel=1e-5)
+    outside = int(2.0 * TEXELS_PER_MM), int(2.0 * TEXELS_PER_MM)  # the plate's corner: no well, no dimming
+    assert dimmed[outside].tolist() == plain[outside].tolist() == [1.0, 1.0, 1.0]
+
 def test_lysed_speckle_is_finer_than_the_grain(base_scene):
     scene, well = base_scene
     lysed = one_lysed_well(scene, well)

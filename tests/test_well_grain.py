@@ -40,3 +40,20 @@ def test_a_clipped_green_is_counted_and_pale_wells_are_left_out(grain):
     # levels 0 and 1 count as clipped: noise of sd 1 about 0 stays under 1.5 with the normal's chance 0.933
     assert crushed["green_clipped"] == pytest.approx(0.933, abs=0.02)
     assert grain.grain_statistics(tile((150, 120, 230), shared_sd=1.0, own_sd=0.0)) is None  # green over 60
+
+
+def test_blotches_are_the_blue_left_after_the_trend(grain):
+    """A smooth gradient of blue is trend (no blotch); a blue wave a few millimetres long is blotch, its sd that of a
+    sine of its amplitude (blurred by BLOTCH_SIGMA pixels: exp(-(k sigma)^2 / 2) of it)."""
+    y, x = np.mgrid[:200, :200].astype(float)
+    gradient = np.zeros((200, 200, 3))
+    gradient[...] = (90.0, 0.0, 200.0)
+    gradient[..., 2] += 0.1 * (y - 100) + 0.05 * (x - 100)
+    smooth = grain.blotch_statistics(gradient)
+    assert smooth["blue_blotch_sd"] < 0.05 and smooth["blue_spread_sd"] > 3.0
+    wavelength = 40.0  # pixels: about 4.4 mm of a 22 mm well
+    waves = gradient.copy()
+    waves[..., 2] = 200.0 + 4.0 * np.sin(2 * np.pi * x / wavelength) * np.sin(2 * np.pi * y / wavelength)
+    k = 2 * np.pi / wavelength
+    expected = 4.0 * 0.5 * np.exp(-(k * grain.BLOTCH_SIGMA) ** 2)  # both factors blurred; sd of sin * sin is 1/2
+    assert grain.blotch_statistics(waves)["blue_blotch_sd"] == pytest.approx(expected, rel=0.15)

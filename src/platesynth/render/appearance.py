@@ -211,6 +211,7 @@ STAIN_DTYPE = np.dtype(
         ("residual_mottle", np.float64),  # the plaque look's unevenness of the stain left inside plaques
         ("residual_tint", np.float64),  # and the share of it in the lysed colour
         ("pooling", np.float64),  # the dye pooled toward the side of rim_mottle_cos/sin
+        ("unevenness_light", np.float64),  # the blotches' dimming of every channel, per unit of their density's
     ]
 )
 """The plate-wide stain (a one-row array, :func:`stain_table`)."""
@@ -309,6 +310,21 @@ def panel_shade_factor(du, dv, radius, well):
     return 1.0 - well.shade * x * x * (3.0 - 2.0 * x)
 
 
+@njit(cache=True, nogil=True, inline="always")
+def floor_light(u, v, du, dv, radius, well, stain, low_grid):
+    """The share of its light a well's floor passes at plate point ``(u, v)``, ``(du, dv)`` mm from the well's
+    centre, besides its layer's stain: the light panel's shade (:func:`panel_shade_factor`) times ``1 -
+    stain.unevenness_light * stain.unevenness * n``, ``n`` the noise of the layer's low-frequency blotches there (the
+    blotches of :func:`monolayer_density`, which a denser patch of cells also scatters light away from, in every
+    channel alike)."""
+    light = panel_shade_factor(du, dv, radius, well)
+    if stain.unevenness_light > 0.0:
+        low_cell = stain.unevenness_cell_mm
+        blotch = grid_sample(low_grid, u / low_cell, v / low_cell)
+        light *= max(1.0 - stain.unevenness_light * stain.unevenness * blotch, 0.0)
+    return light
+
+
 def wall_tints(scene: Scene, wells: list[Well], stain: np.ndarray) -> np.ndarray:
     """Linear RGB factors ``(n, 3)`` on the band over each wall of ``wells``: the transmittance of its well's layer
     at the well's density (:func:`layer_densities`; a lysed well's, film or lace, times ``stain.lysed_density``, in
@@ -363,7 +379,7 @@ def stain_table(scene: Scene, textures: SceneTextures) -> np.ndarray:
                 stain.lysed_foam_mm / FOAM_HOLE_TEXELS, *absorbance,
                 *lysed_absorbance, scratch_shade(scene),
                 scene.plaque_look.residual_mottle,
-                scene.plaque_look.residual_tint, stain.pooling)
+                scene.plaque_look.residual_tint, stain.pooling, stain.unevenness_light)
     return table
 
 
@@ -875,7 +891,7 @@ def _bake_floor(texel_mm, a1x, a1y, pitch, rows, cols, radius, wells, stain, low
             density, lysed = changed_density(density, lysed, u, v, well, st, clearing[y, x], rim[y, x], scratched[y, x], heaped[y, x],
                                              specks[y, x], residual_tile)
             r, g, b = layer_transmittance(density, st, lysed, scratched[y, x])
-            light = panel_shade_factor(du, dv, radius, well)
+            light = floor_light(u, v, du, dv, radius, well, st, low_grid)
             out[y, x, 0] = r * light
             out[y, x, 1] = g * light
             out[y, x, 2] = b * light

@@ -347,7 +347,7 @@ def shade(
                     density, lysed = appearance.changed_density(density, lysed, u, v, well, st, clearing[y, x],
                                                                 rim[y, x], scratched[y, x], heaped[y, x], specks[y, x], residual_tile)
                     layer_r, layer_g, layer_b = appearance.layer_transmittance(density, st, lysed, scratched[y, x])
-                    light = appearance.panel_shade_factor(du, dv, f.radius, well)
+                    light = appearance.floor_light(u, v, du, dv, f.radius, well, st, low_grid)
                     layer_r *= light
                     layer_g *= light
                     layer_b *= light

@@ -143,6 +143,10 @@ class StainConfig(Section):
     well_density_jitter: Dist = number([0.02, 0.08], 0.0, 0.5, "", "relative density change from well to well (sd)")
     unevenness: Dist = number([0.04, 0.12], 0.0, 1.0, "", "low-frequency density variation")
     unevenness_scale_mm: Dist = number([2.0, 6.0], 0.5, 30.0, "mm", "size of low-frequency blotches")
+    unevenness_light: Dist = number(
+        0.0, 0.0, 3.0, "", "how much the layer's low-frequency blotches (unevenness) also dim the light in every "
+        "channel alike, per unit of their effect on the density: a denser patch of cells scatters light away as well "
+        "as absorbing it, so the photos' saturated wells vary in blue about as much as in red")
     centre_gradient: Dist = number([0.0, 0.15], 0.0, 1.0, "", "extra density of the elongated dark centre")
     centre_elongation: Dist = number([1.0, 2.0], 1.0, 5.0, "", "aspect ratio of the dark centre")
     drying_detail: Dist = number([0.01, 0.04], 0.0, 1.0, "", "high-frequency drying texture")

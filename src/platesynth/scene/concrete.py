@@ -87,6 +87,8 @@ class Stain(_Concrete):
     value: float = Field(description="value (brightness) at nominal density, 0..1")
     unevenness: float = Field(description="amplitude of low-frequency density variation, relative")
     unevenness_scale_mm: float = Field(description="size of the low-frequency blotches, mm")
+    unevenness_light: float = Field(0.0, description="how much the blotches also dim the light in every channel "
+                                    "alike, per unit of their effect on the density")
     centre_elongation: float = Field(description="aspect ratio of the wells' dark centres (1 = round)")
     rim_clearing_mm: float = Field(description="width of the thinner, paler band along the rim, mm")
     translucency: float = Field(description="fraction of light passing un-absorbed (gaps in the layer), 0..1")

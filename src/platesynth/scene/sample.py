@@ -369,6 +369,8 @@ def sample_scene(config: SceneConfig, seed: int) -> Scene:
                                      "rim_mottle_patches": c.stain.draw("rim_mottle_patches",
                                                                         scene_rng(seed, "rim_patches")),
                                      "pooling": c.stain.draw("pooling", scene_rng(seed, "stain_pooling")),
+                                     "unevenness_light": c.stain.draw("unevenness_light",
+                                                                      scene_rng(seed, "unevenness_light")),
                                      "crowd_thinning": c.stain.draw("crowd_thinning", scene_rng(seed, "crowd_thinning")),
                                      "rim_mottle_grain_mm": c.stain.draw("rim_mottle_grain_mm",
                                                                          scene_rng(seed, "rim_mottle_grain"))})
