@@ -26,7 +26,7 @@ def test_score_counts_renders_found_and_photos_kept(sheet, tmp_path):
     assert sheet.score(key, answers) == "4/6 right: 2/3 renders found, 2/3 photos called real (chance: half)"
 
 
-def test_score_refuses_answers_that_miss_tiles(sheet, tmp_path):
+def test_answers_that_miss_tiles_and_keys_without_classes_are_refused(sheet, tmp_path):
     key = tmp_path / "sheet.png.key.txt"
     key.write_text("row 0, column 0: real\nrow 0, column 1: synthetic\n")
     answers = tmp_path / "answers.txt"
@@ -35,6 +35,9 @@ def test_score_refuses_answers_that_miss_tiles(sheet, tmp_path):
         sheet.score(key, answers)
     with pytest.raises(SystemExit, match="other.png.key.txt: no such file"):
         sheet.score(tmp_path / "other.png.key.txt", answers)
+    answers.write_text("row 0, column 0: real\nrow 0, column 1: real\n")
+    with pytest.raises(SystemExit, match="without the tiles' classes"):  # a key written before they were
+        sheet.breakdown([(key, answers)])
 
 
 def test_count_classes_and_tile_classes(sheet):
@@ -87,15 +90,6 @@ def test_a_key_line_gives_the_median_colour_of_the_tiles_middle(sheet):
     tile[2:8, 2:8] = (80, 0, 218)
     tile[2, 2] = (255, 255, 255)  # one odd pixel does not move the median
     assert sheet.centre_colour(tile) == "centre RGB 80 0 218"
-
-
-def test_breakdown_refuses_a_key_without_classes(sheet, tmp_path):
-    key = tmp_path / "old.png.key.txt"
-    key.write_text("row 0, column 0: real\n")
-    answers = tmp_path / "answers.txt"
-    answers.write_text("row 0, column 0: real\n")
-    with pytest.raises(SystemExit, match="without the tiles' classes"):
-        sheet.breakdown([(key, answers)])
 
 
 def test_a_sheet_of_chosen_classes_holds_only_those_tiles(sheet, tmp_path):
