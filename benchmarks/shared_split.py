@@ -15,9 +15,14 @@ CHECK_VIRUSES = ("PR8",)
 SPLITS = {"fit": FIT_VIRUSES, "check": CHECK_VIRUSES, "all": FIT_VIRUSES + CHECK_VIRUSES}
 
 
+def virus(name: str) -> str:
+    """The virus of the photo ``name`` (e.g. ``PR8_plate3.jpg`` -> ``PR8``): its name up to the first ``_``."""
+    return name.split("_")[0]
+
+
 def in_split(name: str, split: str) -> bool:
     """Whether the photo ``name`` (e.g. ``PR8_plate3.jpg``) belongs to ``split`` ("fit", "check" or "all")."""
-    return name.split("_")[0] in SPLITS[split]
+    return virus(name) in SPLITS[split]
 
 
 def split_folder(source: Path, split: str, target: Path) -> Path:

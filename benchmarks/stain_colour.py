@@ -27,7 +27,7 @@ import os
 from pathlib import Path
 
 from preset_options import add_preset_options, preset_config
-from shared_split import in_split
+from shared_split import in_split, virus
 
 ROOT = Path(__file__).resolve().parents[1]
 SHARED = Path(os.environ.get("PLATESYNTH_SHARED", ROOT.parent / "shared"))
@@ -113,7 +113,7 @@ def main(argv: list[str] | None = None) -> None:
             image = read_image(path)
             discs = fit_plate_grid(image)
             medians.append(well_medians(image, discs))
-            counted_by_virus.setdefault(path.name.split("_")[0], []).extend(
+            counted_by_virus.setdefault(virus(path.name), []).extend(
                 (row.count, stain_green(image, discs[row.row * 4 + row.col])) for row in counted_rows.get(path.name, []))
         report(f"real, {split}", np.concatenate(medians))
         if args.per_plate:
@@ -138,8 +138,8 @@ def main(argv: list[str] | None = None) -> None:
 
     print(f"\n{'green of the stain, of':24s} median 8-bit green of the stain between the plaques, by plaque count "
           "(wells)")
-    for virus, counted in sorted(counted_by_virus.items()):
-        report_green(f"real, {virus}", counted)
+    for name, counted in sorted(counted_by_virus.items()):
+        report_green(f"real, {name}", counted)
     report_green(label, rendered_green)
 
 

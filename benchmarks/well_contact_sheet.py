@@ -27,7 +27,7 @@ import os
 import re
 from pathlib import Path
 
-from shared_split import in_split
+from shared_split import in_split, virus
 
 ROOT = Path(__file__).resolve().parents[1]
 SHARED = Path(os.environ.get("PLATESYNTH_SHARED", ROOT.parent / "shared"))
@@ -55,8 +55,8 @@ def count_class(count: int | None) -> str:
 
 
 def photo_class(name: str, count: int | None) -> str:
-    """The class of a photo's well: its virus (the photo's name up to ``_``) and its person's count."""
-    return f"photo {name.split('_')[0]}, {count_class(count)}"
+    """The class of a photo's well: its virus and its person's count."""
+    return f"photo {virus(name)}, {count_class(count)}"
 
 
 def render_class(scene, well) -> str:

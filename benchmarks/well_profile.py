@@ -41,7 +41,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from preset_options import add_preset_options, preset_config
-from shared_split import SPLITS
+from shared_split import SPLITS, virus
 
 ROOT = Path(__file__).resolve().parents[1]
 SHARED = Path(os.environ.get("PLATESYNTH_SHARED", ROOT.parent / "shared"))
@@ -210,10 +210,10 @@ def main(argv: list[str] | None = None) -> None:
         for row in csv.DictReader(table):
             if row["count"] == "0":
                 plain_counts.setdefault(row["image"], []).append(int(row["row"]) * 4 + int(row["col"]))
-    photos = {virus: [] for virus in SPLITS["all"]}
+    photos = {name: [] for name in SPLITS["all"]}
     for path in paths:
         image = read_image(path)
-        photos[path.name.split("_")[0]].append(
+        photos[virus(path.name)].append(
             Measured(image, fit_plate_grid(image), plain_counts.get(path.name, [])))
     config, label = preset_config(args)
     renders = []
@@ -222,7 +222,7 @@ def main(argv: list[str] | None = None) -> None:
         with_plaques = {plaque.well for plaque in scene.plaques}
         plain = [i for i, well in enumerate(scene.wells) if not (well.lysed or well.emptied or well.id in with_plaques)]
         renders.append(Measured(image, fit_plate_grid(image, (scene.plate.rows, scene.plate.cols)), plain))
-    sets = [(f"real, {virus}", measured) for virus, measured in photos.items()] + [(label, renders)]
+    sets = [(f"real, {name}", measured) for name, measured in photos.items()] + [(label, renders)]
 
     print(f"{'plain wells of':24s} {'wells':>6s}  luminance of the rings "
           + ", ".join(f"{a}-{b}" for a, b in zip(RINGS[1:-1], RINGS[2:])) + " radii over the centre's")

@@ -21,7 +21,7 @@ import os
 import tempfile
 from pathlib import Path
 
-from shared_split import SPLITS, split_counts
+from shared_split import SPLITS, split_counts, virus
 
 ROOT = Path(__file__).resolve().parents[1]
 SHARED = Path(os.environ.get("PLATESYNTH_SHARED", ROOT.parent / "shared"))
@@ -34,13 +34,13 @@ def bias_by_count(wells: list[dict]) -> str:
     (:data:`COUNT_BINS`), from :func:`platesynth.segment.counts.evaluate_counts`'s per-well records of the wells it
     scores (those with a count)."""
     parts = []
-    for virus in SPLITS["all"]:
-        pairs = [(w["count"], w["predicted"]) for w in wells if w["image"].split("_")[0] == virus and w["count"] is not None]
+    for name in SPLITS["all"]:
+        pairs = [(w["count"], w["predicted"]) for w in wells if virus(w["image"]) == name and w["count"] is not None]
         bins = []
         for low, high in COUNT_BINS:
             errors = [found - counted for counted, found in pairs if low <= counted < high]
             bins.append(f"{low}-{high}: {sum(errors) / len(errors):+.1f} ({len(errors)})" if errors else f"{low}-{high}: -")
-        parts.append(f"{virus} " + ", ".join(bins))
+        parts.append(f"{name} " + ", ".join(bins))
     return "bias by the person's count (wells): " + "; ".join(parts)
 
 
