@@ -289,6 +289,26 @@ def test_lysed_disc_gathers_the_remnant_in_the_middle_of_the_well(base_scene):
     assert wide_rim > 5 * disc_rim  # a wider disc reaches toward the rim (13 times)
 
 
+def test_lysed_rim_loss_clears_a_ring_at_the_rim_or_lets_the_film_reach_the_wall(base_scene):
+    scene, well = base_scene
+    lysed = one_lysed_well(scene, well)
+    radius = scene.plate.well_radius_mm
+
+    def density(rim_loss: float) -> tuple[float, float]:
+        """Mean -log green transmittance within 0.3 mm of the rim, and between 0.5 and 0.6 radii."""
+        variant = lysed.model_copy(update={"stain": lysed.stain.model_copy(update={"lysed_rim_loss": rim_loss})})
+        green = -np.log(appearance.floor_transmittance(variant, TEXELS_PER_MM)[..., 1].astype(np.float64))
+        distance, _ = _texel_places(green.shape, well)
+        return (float(green[(distance > radius - 0.3) & (distance < radius)].mean()),
+                float(green[(distance > 0.5 * radius) & (distance < 0.6 * radius)].mean()))
+
+    ring_rim, ring_inner = density(0.7)
+    film_rim, film_inner = density(0.0)
+    # the loss is 1 - rim_loss * exp(-(R - d) / 1.5 mm): about 1 - 0.7 * 0.91 = 0.37 of the film at the wall
+    assert ring_rim / film_rim == pytest.approx(0.37, abs=0.05)
+    assert ring_inner / film_inner == pytest.approx(1.0, abs=0.05)  # 4.4 mm or more inside, barely touched
+
+
 def test_lysed_clumps_keep_islands_of_intact_stain_on_about_their_share_of_the_well(base_scene):
     scene, well = base_scene
     lysed = one_lysed_well(scene, well)

@@ -48,11 +48,11 @@ def test_presets_load_and_sample_json_roundtrip(preset):
 # sha256 of sample_scene(load_config(preset), 3).model_dump_json(): sampling must not change without intent (a change
 # here changes every dataset rendered from these presets). Update only for a deliberate change of the sampling.
 SCENE_SHA256_SEED3 = {
-    "diverse": "4ce8cc602c8dfdb66c1f62a50744be19a1f15eb4feb7b008722680168f135b00",
-    "high": "525c8c4bf0f0fa88df90426a34856ba4aa18e483bd4815db00a907a9cd830d89",
-    "lightbox12": "14679f9fb78be5eb52f0400d3b0c2f6ee403a708714ee37060e39ee60bd14542",
-    "low": "ac36b8613aa33dba5e4716f508594408928ef6f441bd1dfd68015c66de713c64",
-    "medium": "e461b6567822f7cf6407aa9b4eeacc573274e853669036ed43d49c53f40049f4",
+    "diverse": "9be03e1f7a8e486a5a3a00275a3e14c54108cbc8babd195088b8ae21dc563f01",
+    "high": "6f83edb00bab719e7cb3de92f9013908fd7282985cf01741d0e0c31e0a90c6f9",
+    "lightbox12": "e3924baa2bfc097c0dbc43b1769bfec60615efdf40bf59d4945c24ed407d1e52",
+    "low": "cbfb9984afb0d4650e1f84e784782f8d2ca5912990db0d85cf347c06d4be5fb6",
+    "medium": "e8e4a3ee52f94123aa0ea12f4367a97b63ea5526a85f32fdec14afc191b7a726",
 }
 
 
@@ -474,6 +474,7 @@ def test_lysed_paleness_draws_the_remnants_colour_from_the_pale_palette_and_noth
     ("plate_look", {"plate.crescent_veil": [0.02, 0.1]}, {"plate.crescent_veil": 0.0}),
     ("stain", {"stain.crowd_thinning": [2.0, 8.0]}, {"stain.crowd_thinning": 0.0}),
     ("stain", {"stain.unevenness_light": [0.2, 0.5]}, {"stain.unevenness_light": 0.0}),
+    ("stain", {"stain.lysed_rim_loss": [0.0, 0.3]}, {"stain.lysed_rim_loss": 0.7}),
     ("stain", {"stain.rim_mottle_angle_deg": [60.0, 120.0]}, {"stain.rim_mottle_angle_deg": 90.0}),
     ("background", {"background.panel_shade": [0.3, 0.9], "background.panel_shade_reach_mm": [10.0, 30.0],
                     "background.panel_shade_width_mm": [5.0, 9.0]},

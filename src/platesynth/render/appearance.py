@@ -94,9 +94,9 @@ LYSED_CLUMP_CELL_MM = 0.3
 stands above the level that covers ``stain.lysed_clumps`` of the area)..."""
 LYSED_CLUMP_EDGE = 0.25
 """...their edges fading in over this much of the tile's unit sd above that level."""
-LYSED_RIM_LOSS, LYSED_RIM_MM = 0.7, 1.5
-"""A lysed layer keeps ``stain.lysed_density`` of its density where the remnant is full, and loses this much more
-within this distance of the rim."""
+LYSED_RIM_MM = 1.5
+"""A lysed layer keeps ``stain.lysed_density`` of its density where the remnant is full, and loses
+``stain.lysed_rim_loss`` of it more within about this distance of the rim."""
 
 # ---- plaques
 EDGE_SPAN = 1.5
@@ -198,6 +198,7 @@ STAIN_DTYPE = np.dtype(
         ("lysed_speckle", np.float64),
         ("lysed_disc", np.float64),
         ("lysed_disc_radius", np.float64),
+        ("lysed_rim_loss", np.float64),
         ("lysed_clump_level", np.float64),  # the tile's level above which a clump lies (inf: none)
         ("lysed_foam", np.float64),
         ("lysed_foam_cell_mm", np.float64),  # the foam tile's texel (lysed_foam_mm / FOAM_HOLE_TEXELS)
@@ -375,7 +376,7 @@ def stain_table(scene: Scene, textures: SceneTextures) -> np.ndarray:
                 stain.translucency, stain.rim_mottle, stain.rim_mottle_mm, stain.rim_mottle_side,
                 math.cos(math.radians(stain.rim_mottle_angle_deg)), math.sin(math.radians(stain.rim_mottle_angle_deg)),
                 stain.rim_mottle_patches, stain.rim_mottle_grain_mm, stain.meniscus, stain.lysed_density, stain.lysed_residue, stain.lysed_strands,
-                stain.lysed_grain, stain.lysed_speckle, stain.lysed_disc, stain.lysed_disc_radius, clump_level(stain.lysed_clumps), stain.lysed_foam,
+                stain.lysed_grain, stain.lysed_speckle, stain.lysed_disc, stain.lysed_disc_radius, stain.lysed_rim_loss, clump_level(stain.lysed_clumps), stain.lysed_foam,
                 stain.lysed_foam_mm / FOAM_HOLE_TEXELS, *absorbance,
                 *lysed_absorbance, scratch_shade(scene),
                 scene.plaque_look.residual_mottle,
@@ -496,7 +497,7 @@ def monolayer_density(u, v, du, dv, dist, radius, well, stain, low_grid, fibre_g
             speck = tile_sample(fine_tile, (u + well.noise_y) / LYSED_SPECKLE_CELL_MM, (v + well.noise_x) / LYSED_SPECKLE_CELL_MM)
             remnant *= max(1.0 + stain.lysed_speckle * speck, 0.0)
         intact = density
-        density *= stain.lysed_density * remnant * (1.0 - LYSED_RIM_LOSS * math.exp(-max(radius - dist, 0.0) / LYSED_RIM_MM))
+        density *= stain.lysed_density * remnant * (1.0 - stain.lysed_rim_loss * math.exp(-max(radius - dist, 0.0) / LYSED_RIM_MM))
         if stain.lysed_clump_level < math.inf:  # islands of intact cells the virus left
             lump = tile_sample(mottle_tile, (u + well.noise_y) / LYSED_CLUMP_CELL_MM + LYSED_CLOUD_SHIFT,
                                (v + well.noise_x) / LYSED_CLUMP_CELL_MM)

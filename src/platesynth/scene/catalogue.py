@@ -188,6 +188,10 @@ class StainConfig(Section):
         0.0, 0.0, 1.0, "", "share of what a lysed well keeps that gathers in a denser central disc with a ragged "
         "edge, the rest thinning out around it: 0 a cloud over the whole well")
     lysed_disc_radius: Dist = number(0.6, 0.2, 0.9, "", "radius of that disc, share of the well's radius")
+    lysed_rim_loss: Dist = number(
+        0.7, 0.0, 1.0, "", "share of what a lysed well keeps that it loses more near the rim (within about 1.5 mm, "
+        "fading inward): 0.7 a clear ring between the film and the wall; 0 the film reaching the wall, as on the "
+        "photos' blank IBV wells")
     lysed_clumps: Dist = number(
         0.0, 0.0, 0.3, "", "share of a lysed well's area still holding clumps of intact cells: dense, dark islands of "
         "the plate's stain, a fraction of a millimetre to about two across, amid the pale film")

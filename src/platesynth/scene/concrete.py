@@ -112,6 +112,8 @@ class Stain(_Concrete):
     lysed_speckle: float = Field(0.0, description="fine speckle of what a lysed well keeps (relative, per sd)")
     lysed_disc: float = Field(0.0, description="share of what a lysed well keeps gathered in a central disc, 0..1")
     lysed_disc_radius: float = Field(0.6, description="radius of that disc, share of the well's radius")
+    lysed_rim_loss: float = Field(0.7, description="share of what a lysed well keeps that it loses more near the "
+                                  "rim, 0..1")
     lysed_clumps: float = Field(0.0, description="share of a lysed well's area still holding clumps of intact cells")
     lysed_foam: float = Field(0.0, description="how fully a foam of round holes clears what a lysed well keeps, 0..1")
     lysed_foam_mm: float = Field(0.5, description="median radius of the foam's holes, mm")

@@ -20,7 +20,8 @@ STREAMS = ("well_offsets", "unevenness", "fibres", "desk", "fine", "residual", "
            "wall_lines", "wall_highlights", "plaque_residual_mottle", "plaque_residual_tint",
            "lysed_lace", "black_level", "rim_tears", "scratch_heaps",
            "scratch_ridge", "scratch_ridge_sides", "stain_pooling", "rim_mottle_grain",
-           "plaque_edge_floor", "panel_shade", "crowd_thinning", "lysed_foam", "foam", "unevenness_light")
+           "plaque_edge_floor", "panel_shade", "crowd_thinning", "lysed_foam", "foam", "unevenness_light",
+           "lysed_rim_loss")
 """The random streams of a scene's seed, in the order they are spawned (append new ones at the end)."""
 
 
