@@ -60,8 +60,11 @@ def photo_class(name: str, count: int | None) -> str:
 
 
 def render_class(scene, well) -> str:
-    """The class of a render's well: a pale or a saturated plate, and its plaque count (lysed: uncountable)."""
+    """The class of a render's well: a pale or a saturated plate, and its plaque count (lysed: uncountable; a well
+    drawn without cells, ``wells.emptied``, which no photo has: empty)."""
     plate = "pale" if scene.stain.saturation < PALE_SATURATION else "saturated"
+    if well.emptied:
+        return f"render {plate} plate, empty"
     count = sum(plaque.well == well.id for plaque in scene.plaques) if well.countable else None
     return f"render {plate} plate, {count_class(count)}"
 

@@ -55,8 +55,9 @@ def test_render_class_names_the_plate_and_the_wells_plaques(sheet):
         name = sheet.render_class(scene, well)
         plate = "pale" if scene.stain.saturation < sheet.PALE_SATURATION else "saturated"
         plaques = sum(p.well == well.id for p in scene.plaques)
-        expected = "uncountable" if not well.countable else sheet.count_class(plaques)
+        expected = "empty" if well.emptied else "uncountable" if not well.countable else sheet.count_class(plaques)
         assert name == f"render {plate} plate, {expected}"
+    assert any(well.emptied for well in scene.wells) and any(well.countable for well in scene.wells)
 
 
 def test_breakdown_counts_calls_right_per_class_over_sheets(sheet, tmp_path):

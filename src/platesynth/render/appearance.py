@@ -552,10 +552,12 @@ def stain_transmittance(density, stain, lysed):
 @njit(cache=True, nogil=True, inline="always")
 def layer_transmittance(density, stain, lysed, scratched):
     """Linear RGB transmittance of the layer (:func:`stain_transmittance`) where scratches scraped off ``scratched``
-    of it, their scratched plastic dimming the light by ``stain.scratch_shade`` per unit (:func:`scratch_shade`)."""
+    of it, their scratched plastic dimming the light by ``stain.scratch_shade`` per unit (:func:`scratch_shade`)
+    where they scraped an intact layer: not the share ``lysed`` of it, as the photos' lysed wells show no grey
+    scrape on their pale film."""
     r, g, b = stain_transmittance(density, stain, lysed)
     if scratched > 0.0 and stain.scratch_shade > 0.0:
-        hazed = max(1.0 - stain.scratch_shade * scratched, 0.0)
+        hazed = max(1.0 - stain.scratch_shade * scratched * (1.0 - min(lysed, 1.0)), 0.0)
         return r * hazed, g * hazed, b * hazed
     return r, g, b
 

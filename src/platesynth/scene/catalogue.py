@@ -296,7 +296,8 @@ class ArtifactsConfig(Section):
     scratch_softness_mm: Dist = number(0.0, 0.0, 1.0, "mm", "width over which the edges of the plate's scratches fade "
                                        "(torn cells, not a cut: 0 is as sharp as a pixel)")
     scratch_haze: Dist = number(0.0, 0.0, 0.9, "", "share of the light the scratched plastic under the plate's "
-                                "scratches scatters away (a greyer scrape)")
+                                "scratches scatters away (a greyer scrape) where they scraped an intact layer (the photos' lysed wells show "
+                                "no grey scrape on their pale film)")
     scratch_heaps: Dist = number(0.0, 0.0, 3.0, "", "extra stain density, relative, along the edges of the plate's "
                                  "scratches, where the cells they scraped off heaped up: thin dark margins (the photos' "
                                  "scrapes are white strips edged in dark lines; 0: none)")
