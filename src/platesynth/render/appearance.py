@@ -522,7 +522,14 @@ def changed_density(density, lysed, u, v, well, stain, clearing, rim, scratched,
     ``stain.residual_mottle`` and taking the lysed colour by ``stain.residual_tint``), thickened along
     their rims (``rim``, relative), scraped by scratches (``scratched`` 0..1), thickened where the scraped cells
     heaped up (``heaped``, relative, laid over the scrape: :attr:`WellContent.heaped`) and darkened by specks
-    (``speck``, added density)."""
+    (``speck``, added density). Scratches scrape and heap only the intact share of the layer, not the share
+    ``lysed`` (0..1, from :func:`monolayer_density`) of a lysed well's film: the photos' lysed wells show no scrape
+    on their pale film. Returns the density, the share of it in the lysed colour, and ``scratched`` as it scraped
+    (for :func:`layer_transmittance`)."""
+    if lysed > 0.0:
+        intact = 1.0 - min(lysed, 1.0)
+        scratched *= intact
+        heaped *= intact
     if clearing > 0.0:
         residual = tile_sample(residual_tile, (u + well.noise_y) / RESIDUAL_CELL_MM, (v + well.noise_x) / RESIDUAL_CELL_MM)
         residual = min(max(RESIDUAL_MEAN + stain.residual_mottle * residual, 0.0), 1.0)
@@ -530,7 +537,7 @@ def changed_density(density, lysed, u, v, well, stain, clearing, rim, scratched,
         lysed += (1.0 - lysed) * stain.residual_tint * clearing
     if rim > 0.0:
         density *= 1.0 + rim
-    return density * (1.0 - scratched + heaped) + speck, lysed
+    return density * (1.0 - scratched + heaped) + speck, lysed, scratched
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -552,12 +559,11 @@ def stain_transmittance(density, stain, lysed):
 @njit(cache=True, nogil=True, inline="always")
 def layer_transmittance(density, stain, lysed, scratched):
     """Linear RGB transmittance of the layer (:func:`stain_transmittance`) where scratches scraped off ``scratched``
-    of it, their scratched plastic dimming the light by ``stain.scratch_shade`` per unit (:func:`scratch_shade`)
-    where they scraped an intact layer: not the share ``lysed`` of it, as the photos' lysed wells show no grey
-    scrape on their pale film."""
+    of it (as :func:`changed_density` returns it), their scratched plastic dimming the light by
+    ``stain.scratch_shade`` per unit (:func:`scratch_shade`)."""
     r, g, b = stain_transmittance(density, stain, lysed)
     if scratched > 0.0 and stain.scratch_shade > 0.0:
-        hazed = max(1.0 - stain.scratch_shade * scratched * (1.0 - min(lysed, 1.0)), 0.0)
+        hazed = max(1.0 - stain.scratch_shade * scratched, 0.0)
         return r * hazed, g * hazed, b * hazed
     return r, g, b
 
@@ -891,9 +897,9 @@ def _bake_floor(texel_mm, a1x, a1y, pitch, rows, cols, radius, wells, stain, low
                 continue
             density, lysed = monolayer_density(u, v, du, dv, dist, radius, well, st, low_grid, fibre_grid, fine_tile,
                                                mottle_tile, foam_tile)
-            density, lysed = changed_density(density, lysed, u, v, well, st, clearing[y, x], rim[y, x], scratched[y, x], heaped[y, x],
-                                             specks[y, x], residual_tile)
-            r, g, b = layer_transmittance(density, st, lysed, scratched[y, x])
+            density, lysed, scraped = changed_density(density, lysed, u, v, well, st, clearing[y, x], rim[y, x],
+                                                      scratched[y, x], heaped[y, x], specks[y, x], residual_tile)
+            r, g, b = layer_transmittance(density, st, lysed, scraped)
             light = floor_light(u, v, du, dv, radius, well, st, low_grid)
             out[y, x, 0] = r * light
             out[y, x, 1] = g * light
