@@ -189,9 +189,9 @@ class StainConfig(Section):
         "edge, the rest thinning out around it: 0 a cloud over the whole well")
     lysed_disc_radius: Dist = number(0.6, 0.2, 0.9, "", "radius of that disc, share of the well's radius")
     lysed_rim_loss: Dist = number(
-        0.7, 0.0, 1.0, "", "share of what a lysed well keeps that it loses more near the rim (within about 1.5 mm, "
-        "fading inward): 0.7 a clear ring between the film and the wall; 0 the film reaching the wall, as on the "
-        "photos' blank IBV wells")
+        0.7, 0.0, 1.0, "", "share of what a lysed well keeps that it loses more near the rim (fading inward over "
+        "render.appearance.LYSED_RIM_MM): 0.7 a clear ring between the film and the wall; 0 the film reaching the "
+        "wall, as on the photos' blank IBV wells")
     lysed_clumps: Dist = number(
         0.0, 0.0, 0.3, "", "share of a lysed well's area still holding clumps of intact cells: dense, dark islands of "
         "the plate's stain, a fraction of a millimetre to about two across, amid the pale film")
@@ -296,8 +296,8 @@ class ArtifactsConfig(Section):
     scratch_softness_mm: Dist = number(0.0, 0.0, 1.0, "mm", "width over which the edges of the plate's scratches fade "
                                        "(torn cells, not a cut: 0 is as sharp as a pixel)")
     scratch_haze: Dist = number(0.0, 0.0, 0.9, "", "share of the light the scratched plastic under the plate's "
-                                "scratches scatters away (a greyer scrape) where they scraped an intact layer (the photos' lysed wells show "
-                                "no grey scrape on their pale film)")
+                                "scratches scatters away (a greyer scrape) where they scraped an intact layer (the "
+                                "photos' lysed wells show no grey scrape on their pale film)")
     scratch_heaps: Dist = number(0.0, 0.0, 3.0, "", "extra stain density, relative, along the edges of the plate's "
                                  "scratches, where the cells they scraped off heaped up: thin dark margins (the photos' "
                                  "scrapes are white strips edged in dark lines; 0: none)")
