@@ -250,6 +250,9 @@ def main(argv: list[str] | None = None) -> None:
     for name, measured in sets:
         values = np.array([one_sidedness(m.luminance, [m.discs[i] for i in m.plain]) for m in measured
                            if len(m.plain) >= 2])
+        if not len(values):
+            print(f"{name:24s} {0:6d}  (no image with two plain wells)")
+            continue
         print(f"{name:24s} {len(values):6d}  {np.median(values):.3f} ({np.percentile(values, 25):.3f}-"
               f"{np.percentile(values, 75):.3f})")
 
