@@ -14,7 +14,9 @@ And the green of each well's layer by its plaque count (the person's count in th
 out; the true count in the renders, lysed and emptied wells left out): the median green of the pixels within
 :data:`CENTRE_SHARE` of the radius whose blue exceeds their green by :data:`STAIN_MARGIN` (the stain between the
 plaques), by virus and for the preset, in bins of the count. The photos' saturated plates keep their green at 0 up to
-about 20 plaques and at 60-80 in wells of more (``stain.crowd_thinning``).
+about 20 plaques and at 60-80 in wells of more (``stain.crowd_thinning``). And the blue of the same pixels in the
+plain wells (no plaque): its 5th, 50th and 95th percentiles, by virus and for the preset; a phone's auto exposure holds
+the photos' saturated plain wells at 197-224.
 
 Run: ``python benchmarks/stain_colour.py`` (``--preset P``, ``--images N``, ``--set name=value`` overrides,
 ``--per-plate``).
@@ -76,21 +78,29 @@ def main(argv: list[str] | None = None) -> None:
         print(f"{label:24s} {len(medians):5d}  hue {np.round(hue * 360).astype(int)}  saturation {np.round(sat, 2)}  "
               f"value {np.round(val, 2)}  green {np.round(green).astype(int)}  grain {np.round(grain, 2)}")
 
-    def stain_green(image, disc) -> float:
-        """The median green (8-bit) of the stain's pixels in ``disc``'s centre, NaN where there are too few."""
+    def stain_levels(image, disc) -> tuple[float, float]:
+        """The median green and blue (8-bit) of the stain's pixels in ``disc``'s centre, NaN where there are too few."""
         yy, xx = np.mgrid[: image.shape[0], : image.shape[1]]
         pixels = image[(yy - disc.cy) ** 2 + (xx - disc.cx) ** 2 < (CENTRE_SHARE * disc.radius) ** 2][:, :3]
         stain = pixels[pixels[:, 2].astype(int) > pixels[:, 1].astype(int) + STAIN_MARGIN]
-        return float(np.median(stain[:, 1])) if len(stain) > 50 else float("nan")
+        if len(stain) <= 50:
+            return float("nan"), float("nan")
+        return float(np.median(stain[:, 1])), float(np.median(stain[:, 2]))
 
-    def report_green(label: str, counted: list[tuple[int, float]]) -> None:
-        pairs = np.array(counted, dtype=np.float64).reshape(-1, 2)
+    def report_green(label: str, counted: list[tuple[int, float, float]]) -> None:
+        pairs = np.array(counted, dtype=np.float64).reshape(-1, 3)
         cells = []
         for low, high in COUNT_BINS:
             green = pairs[(pairs[:, 0] >= low) & (pairs[:, 0] <= high) & ~np.isnan(pairs[:, 1]), 1]
             cells.append(f"{low}-{high if high < 10_000 else ''}: {np.median(green) if len(green) else np.nan:3.0f} "
                          f"({len(green)})")
         print(f"{label:24s} " + "  ".join(cells))
+
+    def report_blue(label: str, counted: list[tuple[int, float, float]]) -> None:
+        levels = np.array(counted, dtype=np.float64).reshape(-1, 3)
+        blue = levels[(levels[:, 0] == 0) & ~np.isnan(levels[:, 2]), 2]
+        percentiles = np.round(np.percentile(blue, [5, 50, 95])).astype(int) if len(blue) else "-"
+        print(f"{label:24s} {len(blue):5d}  {percentiles}")
 
     def plate_median(label: str, medians: np.ndarray) -> None:
         hue, sat, val, green, grain = np.median(medians, axis=0)
@@ -104,7 +114,7 @@ def main(argv: list[str] | None = None) -> None:
     for row in read_counts_csv(SHARED / "data" / "plaque12" / "counts.csv"):
         if row.count is not None:
             counted_rows.setdefault(row.image, []).append(row)
-    counted_by_virus: dict[str, list[tuple[int, float]]] = {}
+    counted_by_virus: dict[str, list[tuple[int, float, float]]] = {}
     print(f"{'wells of':24s} {'n':>5s}  percentiles 10, 50, 90")
     for split in ("fit", "check"):
         names = [p for p in photos if in_split(p.name, split)]
@@ -114,7 +124,7 @@ def main(argv: list[str] | None = None) -> None:
             discs = fit_plate_grid(image)
             medians.append(well_medians(image, discs))
             counted_by_virus.setdefault(virus(path.name), []).extend(
-                (row.count, stain_green(image, discs[row.row * 4 + row.col])) for row in counted_rows.get(path.name, []))
+                (row.count, *stain_levels(image, discs[row.row * 4 + row.col])) for row in counted_rows.get(path.name, []))
         report(f"real, {split}", np.concatenate(medians))
         if args.per_plate:
             for path, plate in zip(names, medians):
@@ -130,7 +140,7 @@ def main(argv: list[str] | None = None) -> None:
         for plaque in scene.plaques:
             if plaque.well in counts:
                 counts[plaque.well] += 1
-        rendered_green += [(counts[d.id], stain_green(result.image, d)) for d in discs if d.id in counts]
+        rendered_green += [(counts[d.id], *stain_levels(result.image, d)) for d in discs if d.id in counts]
     report(label, np.concatenate(medians))
     if args.per_plate:
         for index, plate in enumerate(medians):
@@ -141,6 +151,11 @@ def main(argv: list[str] | None = None) -> None:
     for name, counted in sorted(counted_by_virus.items()):
         report_green(f"real, {name}", counted)
     report_green(label, rendered_green)
+
+    print(f"\n{'blue of the stain, of':24s} wells  8-bit blue of the stain in the plain wells: percentiles 5, 50, 95")
+    for name, counted in sorted(counted_by_virus.items()):
+        report_blue(f"real, {name}", counted)
+    report_blue(label, rendered_green)
 
 
 if __name__ == "__main__":
