@@ -130,7 +130,7 @@ def main(argv: list[str] | None = None) -> None:
             for path, plate in zip(names, medians):
                 plate_median(path.stem, plate)
     config, label = preset_config(args)
-    medians, rendered_green = [], []
+    medians, rendered_levels = [], []
     for index in range(args.images):
         scene = sample_scene(config, args.seed + index)
         result = render_raster(scene, (1216, 944))
@@ -140,7 +140,7 @@ def main(argv: list[str] | None = None) -> None:
         for plaque in scene.plaques:
             if plaque.well in counts:
                 counts[plaque.well] += 1
-        rendered_green += [(counts[d.id], *stain_levels(result.image, d)) for d in discs if d.id in counts]
+        rendered_levels += [(counts[d.id], *stain_levels(result.image, d)) for d in discs if d.id in counts]
     report(label, np.concatenate(medians))
     if args.per_plate:
         for index, plate in enumerate(medians):
@@ -150,12 +150,12 @@ def main(argv: list[str] | None = None) -> None:
           "(wells)")
     for name, counted in sorted(counted_by_virus.items()):
         report_green(f"real, {name}", counted)
-    report_green(label, rendered_green)
+    report_green(label, rendered_levels)
 
     print(f"\n{'blue of the stain, of':24s} wells  8-bit blue of the stain in the plain wells: percentiles 5, 50, 95")
     for name, counted in sorted(counted_by_virus.items()):
         report_blue(f"real, {name}", counted)
-    report_blue(label, rendered_green)
+    report_blue(label, rendered_levels)
 
 
 if __name__ == "__main__":
