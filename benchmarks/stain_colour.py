@@ -16,7 +16,7 @@ out; the true count in the renders, lysed and emptied wells left out): the media
 plaques), by virus and for the preset, in bins of the count. The photos' saturated plates keep their green at 0 up to
 about 20 plaques and at 60-80 in wells of more (``stain.crowd_thinning``). And the blue of the same pixels in the
 plain wells (no plaque): its 5th, 50th and 95th percentiles, by virus and for the preset; a phone's auto exposure holds
-the photos' saturated plain wells at 197-224.
+the photos' saturated plain wells at 198-224 (5th to 95th percentile, Brisbane and PR8).
 
 Run: ``python benchmarks/stain_colour.py`` (``--preset P``, ``--images N``, ``--set name=value`` overrides,
 ``--per-plate``).
