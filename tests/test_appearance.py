@@ -309,6 +309,28 @@ def test_lysed_rim_loss_clears_a_ring_at_the_rim_or_lets_the_film_reach_the_wall
     assert ring_inner / film_inner == pytest.approx(1.0, abs=0.05)  # 4.4 mm or more inside, barely touched
 
 
+def test_lysed_haze_dims_what_a_lysed_well_keeps_alike_in_every_channel_by_its_density(base_scene):
+    """``stain.lysed_haze`` adds an absorbance the same in red, green and blue to what a lysed well keeps, per unit
+    of its density: the transmittance of every channel falls by ``exp(-haze * density)``, where the green's own
+    absorbance gives the density; an intact well is untouched."""
+    scene, well = base_scene
+    lysed = one_lysed_well(scene, well)
+    lysed = lysed.model_copy(update={"stain": lysed.stain.model_copy(update={"translucency": 0.0,
+                                                                              "unevenness_light": 0.0})})
+    hazed = lysed.model_copy(update={"stain": lysed.stain.model_copy(update={"lysed_haze": 1.5})})
+    clear, grey = (appearance.floor_transmittance(s, TEXELS_PER_MM).astype(np.float64) for s in (lysed, hazed))
+    distance, _ = _texel_places(clear.shape[:2], well)
+    inside = distance < 0.9 * scene.plate.well_radius_mm
+    green_absorbance = float(appearance.stain_table(lysed, scene_textures(lysed))["lysed_absorbance_g"][0])
+    density = -np.log(clear[inside, 1]) / green_absorbance
+    for channel in range(3):
+        np.testing.assert_allclose(grey[inside, channel], clear[inside, channel] * np.exp(-1.5 * density), rtol=2e-3)
+    assert float(grey[inside, 2].mean()) < 0.9 * float(clear[inside, 2].mean())  # a darker, greyer film
+    unlysed_clear, unlysed_grey = (appearance.floor_transmittance(
+        s.model_copy(update={"wells": scene.wells}), TEXELS_PER_MM) for s in (lysed, hazed))
+    np.testing.assert_array_equal(unlysed_clear, unlysed_grey)  # no lysed well: the haze changes nothing
+
+
 def test_lysed_clumps_keep_islands_of_intact_stain_on_about_their_share_of_the_well(base_scene):
     scene, well = base_scene
     lysed = one_lysed_well(scene, well)

@@ -48,11 +48,11 @@ def test_presets_load_and_sample_json_roundtrip(preset):
 # sha256 of sample_scene(load_config(preset), 3).model_dump_json(): sampling must not change without intent (a change
 # here changes every dataset rendered from these presets). Update only for a deliberate change of the sampling.
 SCENE_SHA256_SEED3 = {
-    "diverse": "9be03e1f7a8e486a5a3a00275a3e14c54108cbc8babd195088b8ae21dc563f01",
-    "high": "6f83edb00bab719e7cb3de92f9013908fd7282985cf01741d0e0c31e0a90c6f9",
-    "lightbox12": "e3924baa2bfc097c0dbc43b1769bfec60615efdf40bf59d4945c24ed407d1e52",
-    "low": "cbfb9984afb0d4650e1f84e784782f8d2ca5912990db0d85cf347c06d4be5fb6",
-    "medium": "e8e4a3ee52f94123aa0ea12f4367a97b63ea5526a85f32fdec14afc191b7a726",
+    "diverse": "f30f9cfc6f15fd506a8f8db85e22ea404633ce754c5422de2b6fe1d76883f065",
+    "high": "c74ff7502ee4178b9a3b0c5ed397d39bd33af6917e1c892825512447194fb824",
+    "lightbox12": "e7310234f219a6ac1d10c98ba902d998b94a11de6c3e9b151703b66d3ac6948f",
+    "low": "7c1e9ce20326ea51a866000216e7b30d3fecaaaf2a9344e19e9381d1850ad3c7",
+    "medium": "8716d892e5d9a83c4f2ea367746247410be17175dd3f0d23e9a894cf7e936069",
 }
 
 
@@ -475,6 +475,7 @@ def test_lysed_paleness_draws_the_remnants_colour_from_the_pale_palette_and_noth
     ("stain", {"stain.crowd_thinning": [2.0, 8.0]}, {"stain.crowd_thinning": 0.0}),
     ("stain", {"stain.unevenness_light": [0.2, 0.5]}, {"stain.unevenness_light": 0.0}),
     ("stain", {"stain.lysed_rim_loss": [0.0, 0.3]}, {"stain.lysed_rim_loss": 0.7}),
+    ("stain", {"stain.lysed_haze": [0.5, 2.0]}, {"stain.lysed_haze": 0.0}),
     ("stain", {"stain.rim_mottle_angle_deg": [60.0, 120.0]}, {"stain.rim_mottle_angle_deg": 90.0}),
     ("background", {"background.panel_shade": [0.3, 0.9], "background.panel_shade_reach_mm": [10.0, 30.0],
                     "background.panel_shade_width_mm": [5.0, 9.0]},

@@ -205,7 +205,7 @@ STAIN_DTYPE = np.dtype(
         ("absorbance_r", np.float64),  # -log of the stain's linear colour: the absorbance at density 1
         ("absorbance_g", np.float64),
         ("absorbance_b", np.float64),
-        ("lysed_absorbance_r", np.float64),  # the same for what a lysed well keeps (stain.lysed_paleness)
+        ("lysed_absorbance_r", np.float64),  # the same for what a lysed well keeps (lysed_paleness, lysed_haze)
         ("lysed_absorbance_g", np.float64),
         ("lysed_absorbance_b", np.float64),
         ("scratch_shade", np.float64),  # light the scratched plastic loses per unit of scraped stain
@@ -371,6 +371,7 @@ def stain_table(scene: Scene, textures: SceneTextures) -> np.ndarray:
         pale = stain_absorbance(stain.model_copy(update={"hue_deg": stain.lysed_hue_deg,
                                                           "saturation": stain.lysed_saturation}))
         lysed_absorbance = (1.0 - stain.lysed_paleness) * absorbance + stain.lysed_paleness * pale
+    lysed_absorbance = lysed_absorbance + stain.lysed_haze  # the debris' grey, the same in every channel
     table = np.zeros(1, dtype=STAIN_DTYPE)
     table[0] = (stain.unevenness, textures.low_cell_mm, stain.centre_elongation, stain.rim_clearing_mm,
                 stain.translucency, stain.rim_mottle, stain.rim_mottle_mm, stain.rim_mottle_side,

@@ -202,6 +202,10 @@ class StainConfig(Section):
     lysed_paleness: Dist = number(
         0.0, 0.0, 1.0, "", "how far the colour of what a lysed well keeps moves from the plate's stain toward a pale, "
         "bluish one drawn from pale_hue_deg and pale_saturation (a thin film of damaged cells): 0 the plate's, 1 the pale")
+    lysed_haze: Dist = number(
+        0.0, 0.0, 5.0, "", "absorbance in every channel alike that what a lysed well keeps adds per unit of its "
+        "density, beside its colour's: dead cells and debris scatter light away, so the photos' blank Brisbane and "
+        "PR8 wells are a darker, greyer mauve than a thin film of the stain (their blue 170-195 in 8-bit, not 205-230)")
     centre_gradient_factor: Dist = number([0.5, 1.0], 0.0, 2.0, "", "each well's factor on centre_gradient")
     centre_offset: Dist = number(0.15, 0.0, 1.0, "",
                                  "sd of a dark centre's offset from the well centre, per axis, fraction of its radius")

@@ -119,6 +119,8 @@ class Stain(_Concrete):
     lysed_foam_mm: float = Field(0.5, description="median radius of the foam's holes, mm")
     lysed_paleness: float = Field(
         0.0, description="how far the colour of what a lysed well keeps moves from the plate's toward the pale one, 0..1")
+    lysed_haze: float = Field(0.0, description="absorbance in every channel alike that what a lysed well keeps "
+                              "adds per unit of its density (light its debris scatters away)")
     lysed_hue_deg: float | None = Field(None, description="hue of the pale colour of what a lysed well keeps, degrees")
     lysed_saturation: float | None = Field(None, description="saturation of that pale colour at nominal density, 0..1")
 

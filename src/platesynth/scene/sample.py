@@ -373,6 +373,7 @@ def sample_scene(config: SceneConfig, seed: int) -> Scene:
                                                                       scene_rng(seed, "unevenness_light")),
                                      "crowd_thinning": c.stain.draw("crowd_thinning", scene_rng(seed, "crowd_thinning")),
                                      "lysed_rim_loss": c.stain.draw("lysed_rim_loss", scene_rng(seed, "lysed_rim_loss")),
+                                     "lysed_haze": c.stain.draw("lysed_haze", scene_rng(seed, "lysed_haze")),
                                      "rim_mottle_grain_mm": c.stain.draw("rim_mottle_grain_mm",
                                                                          scene_rng(seed, "rim_mottle_grain"))})
     plaques = _shrink_crowded(plaques, c.plaques.draw("max_coverage", rng), plate.well_radius_mm)
