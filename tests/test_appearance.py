@@ -312,7 +312,7 @@ def test_lysed_rim_loss_clears_a_ring_at_the_rim_or_lets_the_film_reach_the_wall
 def test_lysed_haze_dims_what_a_lysed_well_keeps_alike_in_every_channel_by_its_density(base_scene):
     """``stain.lysed_haze`` adds an absorbance the same in red, green and blue to what a lysed well keeps, per unit
     of its density: the transmittance of every channel falls by ``exp(-haze * density)``, where the green's own
-    absorbance gives the density; an intact well is untouched."""
+    absorbance gives the density; a scene without a lysed well is untouched."""
     scene, well = base_scene
     lysed = one_lysed_well(scene, well)
     lysed = lysed.model_copy(update={"stain": lysed.stain.model_copy(update={"translucency": 0.0,
