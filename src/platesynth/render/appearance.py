@@ -569,6 +569,22 @@ def layer_transmittance(density, stain, lysed, scratched):
     return r, g, b
 
 
+@njit(cache=True, nogil=True, inline="always")
+def floor_rgb(u, v, du, dv, dist, radius, well, stain, low_grid, fibre_grid, fine_tile, mottle_tile, foam_tile,
+              residual_tile, clearing, rim, scratched, heaped, speck):
+    """Linear RGB light a well's floor passes at plate point ``(u, v)``, ``(du, dv)`` mm and ``dist`` from the well's
+    centre: its monolayer (:func:`monolayer_density`) as the plaques, rims, scratches, heaps and specks there changed
+    it (:func:`changed_density`), through :func:`layer_transmittance`, times :func:`floor_light`. The one model of
+    the floor that the raster renderer draws per pixel and Blender's floor texture bakes."""
+    density, lysed = monolayer_density(u, v, du, dv, dist, radius, well, stain, low_grid, fibre_grid, fine_tile,
+                                       mottle_tile, foam_tile)
+    density, lysed, scraped = changed_density(density, lysed, u, v, well, stain, clearing, rim, scratched, heaped,
+                                              speck, residual_tile)
+    r, g, b = layer_transmittance(density, stain, lysed, scraped)
+    light = floor_light(u, v, du, dv, radius, well, stain, low_grid)
+    return r * light, g * light, b * light
+
+
 @njit(cache=True, nogil=True)
 def draw_plaques(hinv, plaques, fourier, boxes, pixel_mm, from_below, top_radius, fuzz_tile, fray, lumps,
                  centre_residual, halo, halo_width, rim, clear, rim_density, ids):
@@ -896,15 +912,9 @@ def _bake_floor(texel_mm, a1x, a1y, pitch, rows, cols, radius, wells, stain, low
                 out[y, x, 1] = 1.0
                 out[y, x, 2] = 1.0
                 continue
-            density, lysed = monolayer_density(u, v, du, dv, dist, radius, well, st, low_grid, fibre_grid, fine_tile,
-                                               mottle_tile, foam_tile)
-            density, lysed, scraped = changed_density(density, lysed, u, v, well, st, clearing[y, x], rim[y, x],
-                                                      scratched[y, x], heaped[y, x], specks[y, x], residual_tile)
-            r, g, b = layer_transmittance(density, st, lysed, scraped)
-            light = floor_light(u, v, du, dv, radius, well, st, low_grid)
-            out[y, x, 0] = r * light
-            out[y, x, 1] = g * light
-            out[y, x, 2] = b * light
+            out[y, x, 0], out[y, x, 1], out[y, x, 2] = floor_rgb(
+                u, v, du, dv, dist, radius, well, st, low_grid, fibre_grid, fine_tile, mottle_tile, foam_tile,
+                residual_tile, clearing[y, x], rim[y, x], scratched[y, x], heaped[y, x], specks[y, x])
 
 
 def fibre_grid_or_empty(textures: SceneTextures) -> np.ndarray:

@@ -342,16 +342,10 @@ def shade(
                 layer_g = 1.0
                 layer_b = 1.0
                 if disc > 0.0 and well.emptied < 0.5:
-                    density, lysed = appearance.monolayer_density(u, v, du, dv, dist, f.radius, well, st, low_grid,
-                                                                  fibre_grid, fine_tile, mottle_tile, foam_tile)
-                    density, lysed, scraped = appearance.changed_density(
-                        density, lysed, u, v, well, st, clearing[y, x], rim[y, x], scratched[y, x], heaped[y, x],
-                        specks[y, x], residual_tile)
-                    layer_r, layer_g, layer_b = appearance.layer_transmittance(density, st, lysed, scraped)
-                    light = appearance.floor_light(u, v, du, dv, f.radius, well, st, low_grid)
-                    layer_r *= light
-                    layer_g *= light
-                    layer_b *= light
+                    layer_r, layer_g, layer_b = appearance.floor_rgb(
+                        u, v, du, dv, dist, f.radius, well, st, low_grid, fibre_grid, fine_tile, mottle_tile,
+                        foam_tile, residual_tile, clearing[y, x], rim[y, x], scratched[y, x], heaped[y, x],
+                        specks[y, x])
                     layer_r = layer_r * disc + 1.0 - disc
                     layer_g = layer_g * disc + 1.0 - disc
                     layer_b = layer_b * disc + 1.0 - disc
