@@ -8,6 +8,8 @@
 #   DATA=/scratch/plates MODEL=/scratch/model THREADS=4 scripts/train_model.sh
 #   HIGH_CONFIG=my-look.yaml scripts/train_model.sh   # the high part with a configuration over the preset
 #   EPOCHS=20 SEED=3 scripts/train_model.sh           # the shortened recipe the looks' counting checks use
+#   EPOCHS=20 SEEDS="1 2 3" JOBS=3 THREADS=4 scripts/train_model.sh   # one model per seed, $MODEL-s1 ..., three at a
+#                                                     # time (a GPU machine or a node with cores to spare)
 #
 # A change of the high preset changes what this renders: the model shipped before the twenty-sixth session was
 # trained on high's look of the eighth session, which this script then pinned (AS_SHIPPED, git history).
@@ -21,6 +23,8 @@ WORKERS=${WORKERS:-3}
 EPOCHS=${EPOCHS:-40}
 STEPS=${STEPS:-50}
 SEED=${SEED:-1}
+SEEDS=${SEEDS:-}
+JOBS=${JOBS:-1}
 DEVICE=${DEVICE:-auto}
 HIGH_CONFIG=${HIGH_CONFIG:-}
 
@@ -36,7 +40,44 @@ render medium 150 202 medium
 render diverse 150 204 diverse
 render crowded 150 205 high --config "$(dirname "$0")/../benchmarks/configs/crowded-soft.yaml"
 
-platesynth train \
-    --data "$DATA/high" --data "$DATA/medium" --data "$DATA/diverse" --data "$DATA/crowded" --mix 0.48,0.16,0.16,0.2 \
-    --out "$MODEL" --epochs "$EPOCHS" --steps "$STEPS" --batch-size 4 --patch 256x256 --lr 2e-3 \
-    --val-fraction 0.06 --max-val 48 --seed "$SEED" --threads "$THREADS" --workers "$WORKERS" --device "$DEVICE"
+# one seed: the model in $MODEL; several (SEEDS): one per seed in $MODEL-s<seed>, JOBS of them at a time (a training
+# stopped part way resumes when this runs again; the renders above skip what is there)
+train() {
+    platesynth train \
+        --data "$DATA/high" --data "$DATA/medium" --data "$DATA/diverse" --data "$DATA/crowded" --mix 0.48,0.16,0.16,0.2 \
+        --out "$1" --epochs "$EPOCHS" --steps "$STEPS" --batch-size 4 --patch 256x256 --lr 2e-3 \
+        --val-fraction 0.06 --max-val 48 --seed "$2" --threads "$THREADS" --workers "$WORKERS" --device "$DEVICE"
+}
+if [ -z "$SEEDS" ]; then
+    train "$MODEL" "$SEED"
+    exit
+fi
+mkdir -p "$(dirname "$MODEL")"
+failed=0
+running=0
+for seed in $SEEDS; do
+    if [ "$running" -ge "$JOBS" ]; then
+        wait -n || failed=1
+        running=$((running - 1))
+    fi
+    train "$MODEL-s$seed" "$seed" > "$MODEL-s$seed.log" 2>&1 &
+    running=$((running + 1))
+done
+while [ "$running" -gt 0 ]; do
+    wait -n || failed=1
+    running=$((running - 1))
+done
+[ "$failed" -eq 0 ] || { echo "a training failed: see $MODEL-s*.log" >&2; exit 1; }
+# each seed's plaque count error on its held-out renders at its tuned thresholds, smallest first: trainings with a
+# large one counted the photos worse too (docs/segmentation.md, "One training is not a measurement")
+for seed in $SEEDS; do echo "$MODEL-s$seed/config.json"; done | python3 -c '
+import json, sys
+rows = []
+for path in sys.stdin.read().split():
+    config = json.load(open(path))
+    at, plaques = config["training"]["validation_at_thresholds"], config["branches"]["plaques"]
+    rows.append((at["count_mae"], at["count_bias"], plaques["prob_thresh"], plaques["nms_thresh"], path.rsplit("/", 1)[0]))
+print("validation count MAE / bias per countable well, plaque thresholds, model")
+for mae, bias, prob, nms, model in sorted(rows):
+    print(f"{mae:7.2f} {bias:+7.2f}   {prob:.2f} / {nms:.1f}   {model}")
+'
