@@ -9,7 +9,9 @@ and models are tuned on the fit viruses, the check virus is only measured.
 Run: ``python benchmarks/zero_shot_counts.py`` (``--models DIR,DIR``, ``--threads T``, ``--table OUT.csv`` for the
 per-well records of the first model, ``--plaque-thresholds PROB,NMS`` in place of the models' own). Each model's
 last line is its bias by virus and by the person's count (:func:`bias_by_count`): where a model misses crowded wells
-or finds plaques in sparse ones, which one MAE and bias over all wells mix.
+or finds plaques in sparse ones, which one MAE and bias over all wells mix. The line before it is the count error its
+training measured on its own held-out renders at its kept thresholds (``training.validation_at_thresholds``):
+trainings with a large one counted the photos worse too (``docs/segmentation.md``).
 """
 
 from __future__ import annotations
@@ -42,6 +44,15 @@ def bias_by_count(wells: list[dict]) -> str:
             bins.append(f"{low}-{high}: {sum(errors) / len(errors):+.1f} ({len(errors)})" if errors else f"{low}-{high}: -")
         parts.append(f"{name} " + ", ".join(bins))
     return "bias by the person's count (wells): " + "; ".join(parts)
+
+
+def held_out_error(training: dict | None) -> str:
+    """The plaque count error a training measured on its held-out renders at the thresholds it kept."""
+    at = (training or {}).get("validation_at_thresholds") or {}
+    if at.get("count_mae") is None:
+        return "held-out renders at the kept thresholds: not recorded"
+    return (f"held-out renders at the kept thresholds: count MAE {at['count_mae']:.2f}, bias {at['count_bias']:+.2f} "
+            f"({at['countable_wells']} wells)")
 
 
 def main(argv: list[str] | None = None) -> None:
@@ -103,6 +114,7 @@ def main(argv: list[str] | None = None) -> None:
             low, middle, high = np.percentile(list(well_scale.values()), [10, 50, 90])
             print(f"{Path(folder).name:28s} wells' radius over the fitted grid's, {len(well_scale)} photos: "
                   f"{low:.3f} {middle:.3f} {high:.3f} (10th, 50th, 90th percentiles)")
+            print(f"{Path(folder).name:28s} {held_out_error(model.config.training)}")
             print(f"{Path(folder).name:28s} {bias_by_count(records)}")
 
 
