@@ -18,6 +18,9 @@ middle of the tile (``row 0, column 3: real | photo PR8, 0 plaques | PR8_plate4.
 render's class says whether its plate is a pale or a saturated one and whether the well is lysed), so that
 ``--breakdown SHEET.png=ANSWERS.txt ...`` can count the calls right per class of tile over many sheets and judges
 (``--by plate``: per photo or rendered scene): which renders are found, and which photos are doubted.
+
+``--interior`` keeps only the middle disc of every tile (:data:`INTERIOR`), the rest white: the stained layer without
+the wall, the plastic and the light box around it, to tell which of the two a judge's calls rest on.
 """
 
 from __future__ import annotations
@@ -43,6 +46,8 @@ CENTRE = 0.3
 PALE_SATURATION = 0.8
 MAX_SCENES = 1000
 """Scenes a sheet renders at most looking for wells that match ``--renders``."""
+INTERIOR = 0.94
+"""With ``--interior``, a tile keeps the disc of this share of its half-side (the stain's edge lies at about 0.97)."""
 
 
 def count_class(count: int | None) -> str:
@@ -52,6 +57,17 @@ def count_class(count: int | None) -> str:
     if count == 0:
         return "0 plaques"
     return "1-10 plaques" if count <= 10 else "over 10 plaques"
+
+
+def interior_only(tile):
+    """``tile`` (square, RGB uint8) with everything outside its middle disc (:data:`INTERIOR`) white."""
+    import numpy as np
+
+    side = tile.shape[0]
+    y, x = np.mgrid[:side, :side] - (side - 1) / 2
+    out = tile.copy()
+    out[np.hypot(x, y) > INTERIOR * side / 2] = 255
+    return out
 
 
 def photo_class(name: str, count: int | None) -> str:
@@ -146,6 +162,8 @@ def main(argv: list[str] | None = None) -> None:
                         help="only photo wells whose class matches this regular expression (e.g. 'PR8|Brisbane')")
     parser.add_argument("--renders", default="",
                         help="only rendered wells whose class matches this regular expression (e.g. 'saturated')")
+    parser.add_argument("--interior", action="store_true",
+                        help="keep only the middle disc of every tile: the layer without what surrounds the well")
     parser.add_argument("--score", type=Path, help="a judge's answers to score against OUT's key (writes nothing)")
     parser.add_argument("--breakdown", nargs="+", metavar="SHEET=ANSWERS",
                         help="calls right per class of tile over these sheets' judges (writes nothing; no --out)")
@@ -192,6 +210,7 @@ def main(argv: list[str] | None = None) -> None:
         discs = fit_plate_grid(image, grid)
         for index in chosen:
             tile = crop_well(image, discs[index], args.tile)
+            tile = interior_only(tile) if args.interior else tile
             real.append((tile, f"{photo_class(path.name, wells[index].count)} | {path.name} {wells[index].well} | "
                                f"{centre_colour(tile)}"))
         if len(real) >= args.wells:
@@ -215,6 +234,7 @@ def main(argv: list[str] | None = None) -> None:
         for index in chosen:
             well = scene.wells[index]
             tile = crop_well(image, discs[index], args.tile)
+            tile = interior_only(tile) if args.interior else tile
             synthetic.append((tile, f"{render_class(scene, well)} | scene {args.first_scene + seed - 1} {well.label} | "
                                     f"{centre_colour(tile)}"))
     tiles = ([(*tile, "real") for tile in real[: args.wells]]

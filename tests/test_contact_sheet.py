@@ -107,3 +107,11 @@ def test_a_sheet_of_chosen_classes_holds_only_those_tiles(sheet, tmp_path):
         ["photo PR8, 0 plaques"] * 3 + ["render saturated plate, 0 plaques"] * 3)
     with pytest.raises(SystemExit, match="only 0 photo wells of the check split match"):
         sheet.main(["--out", str(tmp_path / "none.png"), "--split", "check", "--photos", "IBV"])
+
+
+def test_interior_keeps_the_middle_disc_and_whitens_the_rest(sheet):
+    tile = np.full((100, 100, 3), 40, np.uint8)
+    inside = sheet.interior_only(tile)
+    assert (inside[50, 50] == 40).all() and (inside[50, 4] == 40).all()  # 45.5 px from the centre: inside 47
+    assert (inside[50, 1] == 255).all() and (inside[0, 0] == 255).all()  # 48.5 px, the corner: outside
+    assert (tile == 40).all()  # the tile itself is untouched
