@@ -97,6 +97,38 @@ def test_centre_residual_makes_a_paler_centre(base_scene):
     assert clearing[(distance > 0.7) & (distance < 0.8)].mean() > 0.8
 
 
+def test_edge_grain_keeps_clumps_of_stain_in_a_ring_inside_the_outline(base_scene):
+    """``plaque_look.edge_grain``: in a ring inside a plaque's outline (``edge_grain_width`` of its radius deep),
+    separate clumps of cells keep up to this share of the clearing; the middle stays cleared, the clearing beyond
+    the outline does not grow, and the plaque masks do not change."""
+    scene, well = base_scene
+    col, row = (int(c * TEXELS_PER_MM) for c in well.center_mm)
+    reach = int(1.2 * TEXELS_PER_MM)
+    yy, xx = np.mgrid[-reach:reach, -reach:reach]
+    # from the plaque's centre (texel centres lie at (i + 0.5) / TEXELS_PER_MM); its radius is 1 mm, its edge 0.2 mm
+    radius_mm = np.hypot((row + yy + 0.5) / TEXELS_PER_MM - well.center_mm[1],
+                         (col + xx + 0.5) / TEXELS_PER_MM - well.center_mm[0])
+    window = (slice(row - reach, row + reach), slice(col - reach, col + reach))
+    look = PlaqueLook(fray=0.0, centre_residual=0.0)
+    even = well_content(scene.model_copy(update={"plaque_look": look}))
+    grainy = well_content(scene.model_copy(update={"plaque_look": look.model_copy(
+        update={"edge_grain": 0.8, "edge_grain_width": 0.2})}))
+    even_clear, grainy_clear = even.clearing[window], grainy.clearing[window]
+    np.testing.assert_array_equal(grainy.plaque_ids, even.plaque_ids)
+    assert np.all(grainy_clear <= even_clear + 1e-6)
+    ring = (radius_mm > 0.8) & (radius_mm < 0.9)
+    middle = radius_mm < 0.3
+    kept = 1.0 - grainy_clear[ring] / even_clear[ring]  # the share of the clearing the clumps keep
+    # clumps, not a darker band: about a quarter of the ring (the fine tile beyond GRAIN_LEVEL sd) keeps a share,
+    # at most 0.8 * exp(-(1 - r) / 0.2) at r of the radius (0.36-0.49 here), and the rest is cleared as before
+    most = 0.8 * np.exp(-(1.0 - radius_mm[ring]) / 0.2)
+    assert 0.1 < (kept > 0.05).mean() < 0.5
+    assert np.all(kept <= most + 1e-3) and (kept / most).max() > 0.95
+    assert np.median(kept) < 0.02
+    # the middle, 0.7-1 of the radius from the ring, keeps at most 0.8 * exp(-0.7 / 0.2) = 0.024
+    assert (1.0 - grainy_clear[middle] / even_clear[middle]).max() < 0.025
+
+
 def test_residual_mottle_leaves_patches_of_stain_inside_a_plaque(base_scene):
     """``plaque_look.residual_mottle``: the share of stain left in a cleared plaque varies in patches around its mean
     (0.03), by this sd, clipped at 0; the stain around the plaque stays as it was."""

@@ -48,11 +48,11 @@ def test_presets_load_and_sample_json_roundtrip(preset):
 # sha256 of sample_scene(load_config(preset), 3).model_dump_json(): sampling must not change without intent (a change
 # here changes every dataset rendered from these presets). Update only for a deliberate change of the sampling.
 SCENE_SHA256_SEED3 = {
-    "diverse": "f30f9cfc6f15fd506a8f8db85e22ea404633ce754c5422de2b6fe1d76883f065",
-    "high": "c74ff7502ee4178b9a3b0c5ed397d39bd33af6917e1c892825512447194fb824",
-    "lightbox12": "e7310234f219a6ac1d10c98ba902d998b94a11de6c3e9b151703b66d3ac6948f",
-    "low": "7c1e9ce20326ea51a866000216e7b30d3fecaaaf2a9344e19e9381d1850ad3c7",
-    "medium": "8716d892e5d9a83c4f2ea367746247410be17175dd3f0d23e9a894cf7e936069",
+    "diverse": "96c26dfba5d2295d355d96026bbf8b6222a12d4f317905b3772f1d4795a10d00",
+    "high": "66c6b8c1d9fa4ffd45eeb6270517cc0578cbfbcb29a20cf3a15d445f98565081",
+    "lightbox12": "39c831bac5d7ffbd73ddc3e9cff474f2e7f0c5ed4fd2e0b538ad9c474fcb8214",
+    "low": "be665649ef0f1393f6ea661e0faedfcaed5106daf517646ebedf6a446ffc7d5d",
+    "medium": "c514c9fdd8e6cde85c3668d3036d31f489c896489fbeb3c998aa33b11cf3cabf",
 }
 
 
@@ -457,6 +457,8 @@ def test_lysed_paleness_draws_the_remnants_colour_from_the_pale_palette_and_noth
     ("plaque_look", {"plaques.residual_mottle": [0.1, 0.2], "plaques.residual_tint": [0.5, 1.0]},
      {"plaques.residual_mottle": 0.03, "plaques.residual_tint": 0.0}),
     ("plaque_look", {"plaques.edge_floor_mm": [0.2, 0.35]}, {"plaques.edge_floor_mm": 0.0}),
+    ("plaque_look", {"plaques.edge_grain": [0.3, 0.6], "plaques.edge_grain_width": [0.2, 0.4]},
+     {"plaques.edge_grain": 0.0, "plaques.edge_grain_width": 0.3}),
     ("stain", {"stain.lysed_speckle": [0.3, 0.6]}, {"stain.lysed_speckle": 0.0}),
     ("post", {"post.sharpen_luma": [0.5, 1.0]}, {"post.sharpen_luma": 0.0}),
     ("plate_look", {"plate.top_edge_blur_mm": [0.2, 0.6]}, {"plate.top_edge_blur_mm": 0.0}),

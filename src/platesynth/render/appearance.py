@@ -111,6 +111,14 @@ LUMP_REACH = 4.0
 """A plaque's drawn box reaches this many sd of the lump noise beyond its outline."""
 FRAY_ROWS_PER_PLAQUE = 7.37
 """Each plaque reads the fray tile this many rows further along, so that neighbours fray differently."""
+GRAIN_CELL_MM = 0.1
+"""Cell of the clumps of cells a plaque's granular ring keeps (the fine tile, read in plate millimetres)."""
+GRAIN_TILE_OFFSET = 57.9
+"""The clumps read the fine tile this many cells away from where the drying texture and the lumps read it."""
+GRAIN_LEVEL = 0.4
+"""The clumps lie where the fine tile (unit sd) exceeds this: about a quarter of the ring, in separate dots."""
+GRAIN_EDGE = 0.4
+"""The clumps' edge: they keep their full share beyond ``GRAIN_LEVEL + GRAIN_EDGE`` sd."""
 CORE_DIP_SHARPNESS = 3.0
 """A plaque's centre clears less by ``plaque_look.centre_residual * exp(-SHARPNESS * (r / R)**2)``."""
 RIM_BAND = 0.35
@@ -587,16 +595,17 @@ def floor_rgb(u, v, du, dv, dist, radius, well, stain, low_grid, fibre_grid, fin
 
 @njit(cache=True, nogil=True)
 def draw_plaques(hinv, plaques, fourier, boxes, pixel_mm, from_below, top_radius, fuzz_tile, fray, lumps,
-                 centre_residual, halo, halo_width, rim, clear, rim_density, ids):
+                 centre_residual, edge_grain, edge_grain_width, halo, halo_width, rim, clear, rim_density, ids):
     """Draw plaques in order (later ones on top).
 
     ``plaques``: :data:`PLAQUE_DTYPE` rows (mm); ``fourier[p, k] = (a, b)`` for harmonic ``k + 2``; ``fray``,
-    ``lumps``, ``centre_residual``, ``halo``, ``halo_width`` and ``rim``: the plate's
-    :class:`~platesynth.scene.PlaqueLook`. The outline is the Fourier shape moved out or in by ``lumps`` times the
-    radius times ``fuzz_tile`` noise read in plate millimetres (:data:`LUMP_CELL_MM`). ``clear`` (float32) receives
+    ``lumps``, ``centre_residual``, ``edge_grain``, ``edge_grain_width``, ``halo``, ``halo_width`` and ``rim``: the
+    plate's :class:`~platesynth.scene.PlaqueLook`. The outline is the Fourier shape moved out or in by ``lumps`` times
+    the radius times ``fuzz_tile`` noise read in plate millimetres (:data:`LUMP_CELL_MM`). ``clear`` (float32) receives
     the union of the plaques' clearing (0..1): a soft edge centred on the outline, frayed by ``fuzz_tile`` noise
-    read around the plaque (radial fibres), a paler centre and a soft halo outside; ``rim_density`` (float32) the largest
-    relative density added by a darker rim along an outline. ``ids`` (uint16) receives ``p + 1`` where the pixel
+    read around the plaque (radial fibres), a paler centre, clumps of cells kept in a ring inside the outline
+    (``fuzz_tile`` read in plate millimetres, :data:`GRAIN_CELL_MM`) and a soft halo outside; ``rim_density``
+    (float32) the largest relative density added by a darker rim along an outline. ``ids`` (uint16) receives ``p + 1`` where the pixel
     centre lies inside plaque ``p``'s outline and inside the visible interior of its well.
     """
     n_harmonics = fourier.shape[1]
@@ -658,6 +667,11 @@ def draw_plaques(hinv, plaques, fourier, boxes, pixel_mm, from_below, top_radius
                         t = 1.0
                     inner = dist / (radius * outline)
                     c = clearness * t * t * (3.0 - 2.0 * t) * (1.0 - centre_residual * math.exp(-CORE_DIP_SHARPNESS * inner * inner))
+                    if edge_grain > 0.0:  # clumps of cells not yet lysed, thinning out from the outline inward
+                        ring = math.exp(-max(1.0 - inner, 0.0) / edge_grain_width)
+                        clump = tile_sample(fuzz_tile, u / GRAIN_CELL_MM + GRAIN_TILE_OFFSET,
+                                            v / GRAIN_CELL_MM + GRAIN_TILE_OFFSET)
+                        c *= 1.0 - edge_grain * ring * clip01((clump - GRAIN_LEVEL) / GRAIN_EDGE)
                 if halo > 0.0 and signed > 0.0:
                     c = max(c, halo * clearness * math.exp(-signed / halo_mm))
                 if c > 0.0:
@@ -848,7 +862,8 @@ def draw_well_content(
         corners = centres[:, None, :] + signs[None] * reach[:, None, None]
         boxes = boxes_from_extents(grid.project(corners), grid.height, grid.width)
         draw_plaques(grid.px_to_plate, plaques, fourier, boxes, pixel_mm, scene.camera.from_below, top_radius,
-                     textures.fine_tile, look.fray, look.lumps, look.centre_residual, look.halo, look.halo_width, look.rim,
+                     textures.fine_tile, look.fray, look.lumps, look.centre_residual, look.edge_grain,
+                     look.edge_grain_width, look.halo, look.halo_width, look.rim,
                      content.clearing, content.rim, content.plaque_ids)
     art = scene.artifacts
     segments = []

@@ -273,6 +273,11 @@ class PlaquesConfig(Section):
     halo: Dist = number(0.0, 0.0, 1.0, "", "clearing of the soft halo just outside a plaque's outline")
     halo_width: Dist = number(0.5, 0.01, 3.0, "", "reach of the halo beyond the outline, fraction of the radius")
     rim: Dist = number(0.0, 0.0, 3.0, "", "extra stain density along a plaque's outline (a thin darker rim)")
+    edge_grain: Dist = number(0.0, 0.0, 1.0, "", "share of the clearing that clumps of cells not yet lysed keep in a ring "
+                              "inside a plaque's outline: the photos' cottony plaques, granular toward a well-defined "
+                              "edge and clearer in the middle (0: an even clearing; the plaque masks do not change)")
+    edge_grain_width: Dist = number(0.3, 0.02, 1.0, "", "depth of the granular ring inside a plaque's outline, "
+                                    "fraction of the radius (the clumps thin out over it toward the centre)")
 
 
 class ArtifactsConfig(Section):

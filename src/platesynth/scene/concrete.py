@@ -201,6 +201,9 @@ class PlaqueLook(_Concrete):
     halo: float = Field(0.0, description="clearing of the soft halo just outside a plaque's outline")
     halo_width: float = Field(0.5, description="reach of the halo beyond the outline, share of the radius")
     rim: float = Field(0.0, description="extra stain density on a thin band along a plaque's outline (a darker rim)")
+    edge_grain: float = Field(0.0, description="share of the clearing that clumps of cells not yet lysed keep in a "
+                              "ring inside a plaque's outline (a granular edge)")
+    edge_grain_width: float = Field(0.3, description="depth of that ring inside the outline, share of the radius")
 
 
 class Scratch(_Concrete):

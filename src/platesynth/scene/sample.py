@@ -42,7 +42,8 @@ from platesynth.scene.streams import scene_rng
 STAIN_DRAWN_LAST = ("rim_mottle", "rim_mottle_mm", "lysed_density", "lysed_residue", "lysed_strands", "lysed_grain")
 """Stain parameters drawn after all others (added later; drawing them earlier would change every scene)."""
 PLAQUE_LOOK_OWN_STREAM = {"lumps": "plaque_lumps", "residual_mottle": "plaque_residual_mottle",
-                          "residual_tint": "plaque_residual_tint", "edge_floor_mm": "plaque_edge_floor"}
+                          "residual_tint": "plaque_residual_tint", "edge_floor_mm": "plaque_edge_floor",
+                          "edge_grain": "plaque_edge_grain", "edge_grain_width": "plaque_edge_grain_width"}
 """Fields of the plaque look drawn from a random stream of their own, and its name (added later: every other draw
 stays)."""
 PANEL_SHADE = ("panel_shade", "panel_shade_reach_mm", "panel_shade_width_mm")
