@@ -311,7 +311,7 @@ def _scene_without_post():
 
     scene = sample_scene(load_config("high", overrides={"plaques.negative_plate": 1.0, "lighting.exposure_ev": 0.0}), 2)
     switches = {name: effect.model_copy(update={"enabled": False}) for name, effect in scene.post if isinstance(effect, Effect)}
-    switches |= {"sharpen_luma": 0.0, "noise_grain_px": 0.0, "black_level": 0.0}
+    switches |= {"sharpen_luma": 0.0, "sharpen_threshold": 0.0, "noise_grain_px": 0.0, "black_level": 0.0}
     return scene, scene.model_copy(update={"post": scene.post.model_copy(update=switches),
                                            "camera": scene.camera.model_copy(update={"defocus_px": 0.0})})
 
@@ -331,8 +331,9 @@ def test_the_compositor_post_processing_is_the_raster_renderers(pool):
     effects = {"brightness": 0.1, "clarity": 0.4, "motion_blur": 6.0, "chromatic_aberration": 3.0, "bloom": 0.4, "sharpen": 1.8}
     variants = {name: {name: Effect(enabled=True, strength=strength)} for name, strength in effects.items()}
     variants["sharpen_luma"] = {"sharpen": Effect(enabled=True, strength=1.8), "sharpen_luma": 1.0}
+    variants["sharpen_threshold"] = {"sharpen": Effect(enabled=True, strength=1.8), "sharpen_threshold": 4.0}
     variants["black_level"] = {"black_level": 0.06}
-    colour_of_change = {}
+    colour_of_change, change_of = {}, {}
     for name, update in variants.items():
         post = bare.post.model_copy(update=update)
         blender = render_blender(bare.model_copy(update={"post": post}), size, samples=SAMPLES, pool=pool).image.astype(np.float64)
@@ -342,9 +343,12 @@ def test_the_compositor_post_processing_is_the_raster_renderers(pool):
         assert abs(change - expected_change) < 0.15 * expected_change, (name, change, expected_change)
         assert np.abs(blender - expected).mean() < 0.35 * expected_change + 0.3, name
         colour_of_change[name] = np.abs(np.diff(blender - plain, axis=2)).mean()  # how unequal the channels' changes are
+        change_of[name] = change
     # sharpening the luminance changes every channel alike (0.31 levels between neighbouring channels, 2.10 for
     # sharpening each channel, measured)
     assert colour_of_change["sharpen_luma"] < 0.3 * colour_of_change["sharpen"], colour_of_change
+    # coring leaves the flat stain's detail alone: the change is smaller than sharpening everything
+    assert change_of["sharpen_threshold"] < 0.8 * change_of["sharpen"], change_of
 
 
 @needs_bpy

@@ -190,6 +190,25 @@ def test_sharpening_the_luminance_leaves_no_coloured_halo():
     np.testing.assert_allclose(half, 0.5 * (per_channel + on_luma), atol=1e-6)
 
 
+def test_sharpening_with_a_threshold_leaves_the_flat_stains_grain_alone():
+    """``post.sharpen_threshold`` (coring): detail within the threshold of 0 is not sharpened, only what exceeds it,
+    so a flat stain's grain of a level or two keeps its amplitude while an edge is sharpened nearly as much."""
+    rng = np.random.default_rng(0)
+    image = np.full((40, 80, 3), 0.3, dtype=np.float32)
+    image[:, 40:] = 0.8  # an edge of 128 levels
+    grain = (rng.standard_normal((40, 80, 1)) / 255.0).astype(np.float32)  # sd 1 level, the same in every channel
+    grainy = image + grain
+    plain, cored = pp.sharpen(grainy, 1.5, 1.0), pp.sharpen(grainy, 1.5, 1.0, threshold=3.0 / 255.0)
+    flat = np.s_[:, 5:30]
+    # unsharp masking amplifies the grain (by 1.5 times its share above the blur, here about 1.9 times); cored,
+    # no pixel's grain detail exceeds 3 levels, so the flat side is left exactly as it was
+    assert plain[flat].std() > 1.5 * grainy[flat].std()
+    np.testing.assert_array_equal(cored[flat], grainy[flat])
+    edge = np.s_[:, 38:43]
+    overshoot_plain, overshoot_cored = (np.abs(out - grainy)[edge].max() for out in (plain, cored))
+    assert overshoot_cored > 0.9 * overshoot_plain - 1.5 * 3.0 / 255.0  # the edge loses at most the threshold's share
+
+
 def test_clean_isolated_pixels_hand_made_cases():
     mask = np.array(
         [

@@ -48,11 +48,11 @@ def test_presets_load_and_sample_json_roundtrip(preset):
 # sha256 of sample_scene(load_config(preset), 3).model_dump_json(): sampling must not change without intent (a change
 # here changes every dataset rendered from these presets). Update only for a deliberate change of the sampling.
 SCENE_SHA256_SEED3 = {
-    "diverse": "96c26dfba5d2295d355d96026bbf8b6222a12d4f317905b3772f1d4795a10d00",
-    "high": "66c6b8c1d9fa4ffd45eeb6270517cc0578cbfbcb29a20cf3a15d445f98565081",
-    "lightbox12": "39c831bac5d7ffbd73ddc3e9cff474f2e7f0c5ed4fd2e0b538ad9c474fcb8214",
-    "low": "be665649ef0f1393f6ea661e0faedfcaed5106daf517646ebedf6a446ffc7d5d",
-    "medium": "c514c9fdd8e6cde85c3668d3036d31f489c896489fbeb3c998aa33b11cf3cabf",
+    "diverse": "100e3590ec9573f24d3c79666290d13f18068991f81a9880ac7ccbdda0e4d0cf",
+    "high": "56703bed7c09bb06c6f01ea99279df2915d197595f2205818c3c22ea3050e394",
+    "lightbox12": "74e06d8a24a7fbf28bf97f44a183ac9fc971ed1db444e0fa146ed2d2ce25b247",
+    "low": "10ecd57251aee75e121680c9d1c7a3bcd4f8289e49a91af358967ef65ecd21e1",
+    "medium": "e6dacffdaed5d0ad5ce34b01982ca0a401460966223dea48d9f9ac26bd57c79a",
 }
 
 
@@ -461,6 +461,7 @@ def test_lysed_paleness_draws_the_remnants_colour_from_the_pale_palette_and_noth
      {"plaques.edge_grain": 0.0, "plaques.edge_grain_width": 0.3}),
     ("stain", {"stain.lysed_speckle": [0.3, 0.6]}, {"stain.lysed_speckle": 0.0}),
     ("post", {"post.sharpen_luma": [0.5, 1.0]}, {"post.sharpen_luma": 0.0}),
+    ("post", {"post.sharpen_threshold": [2.0, 4.0]}, {"post.sharpen_threshold": 0.0}),
     ("plate_look", {"plate.top_edge_blur_mm": [0.2, 0.6]}, {"plate.top_edge_blur_mm": 0.0}),
     ("post", {"post.noise_grain_px": [0.8, 1.4]}, {"post.noise_grain_px": 0.0}),
     ("post", {"post.black_level": [0.02, 0.05]}, {"post.black_level": 0.0}),

@@ -116,12 +116,16 @@ def bloom(image: np.ndarray, strength: float, threshold: float = BLOOM_THRESHOLD
     return image + strength * glow
 
 
-def sharpen(image: np.ndarray, amount: float, sigma: float = 1.0, luma: float = 0.0) -> np.ndarray:
+def sharpen(image: np.ndarray, amount: float, sigma: float = 1.0, luma: float = 0.0,
+            threshold: float = 0.0) -> np.ndarray:
     """Unsharp masking; a share ``luma`` (0..1) of it adds the luminance's detail to every channel, as a phone
-    sharpens, so that a coloured edge gets no coloured halo."""
+    sharpens, so that a coloured edge gets no coloured halo; detail within ``threshold`` (display units, 0..1) of 0
+    is left alone and only the rest is sharpened (coring: edges are sharpened, the flat stain's grain is not)."""
     detail = image - gaussian_blur(image, sigma)
     if luma > 0.0:
         detail = (1.0 - luma) * detail + luma * _luminance(detail)[..., None]
+    if threshold > 0.0:
+        detail = detail - np.clip(detail, -threshold, threshold)
     return image + amount * detail
 
 
@@ -182,7 +186,8 @@ def apply_post(image: np.ndarray, post: PostProcessing, rng: np.random.Generator
     if post.bloom.enabled:
         image = bloom(image, post.bloom.strength)
     if post.sharpen.enabled:
-        image = sharpen(image, post.sharpen.strength, sigma=max(0.5, px_scale), luma=post.sharpen_luma)
+        image = sharpen(image, post.sharpen.strength, sigma=max(0.5, px_scale), luma=post.sharpen_luma,
+                        threshold=post.sharpen_threshold / 255.0)
     if post.noise.enabled:
         image = sensor_noise(image, post.noise.strength, rng, grain_px=post.noise_grain_px * px_scale)
     if post.black_level > 0.0:

@@ -370,6 +370,9 @@ class PostConfig(Section):
     sharpen_strength: Dist = number([1.0, 2.0], 0.0, 2.0, "", "unsharp-mask amount")
     sharpen_luma: Dist = number(0.0, 0.0, 1.0, "", "share of the sharpening done on the luminance alone, as a "
                                 "phone does (0 sharpens each colour channel: coloured halos at coloured edges)")
+    sharpen_threshold: Dist = number(0.0, 0.0, 20.0, "levels", "detail the sharpening leaves alone, in 8-bit levels: "
+                                     "only the part of a pixel's detail beyond it is sharpened (coring, as a phone "
+                                     "sharpens edges but not the flat stain's grain; 0 sharpens everything)")
     noise: float = probability(1.0, "chance of sensor noise")
     noise_strength: Dist = number([1.0, 2.5], 0.0, 30.0, "levels", "noise sd in 8-bit levels")
     noise_grain_px: Dist = number(0.0, 0.0, 3.0, "px", "sd of the blur that clumps the noise into grains, px at 1024 px "

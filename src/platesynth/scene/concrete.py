@@ -326,6 +326,8 @@ class PostProcessing(_Concrete):
     bloom: Effect = Field(default=Effect(), description="glow around bright areas, strength 0..1")
     sharpen: Effect = Field(default=Effect(), description="unsharp masking, strength 0..2")
     sharpen_luma: float = Field(default=0.0, description="share of the sharpening done on the luminance alone, 0..1")
+    sharpen_threshold: float = Field(default=0.0, description="detail the sharpening leaves alone, 8-bit levels: only "
+                                     "what exceeds it is sharpened (coring)")
     noise: Effect = Field(default=Effect(), description="sensor noise, standard deviation in 8-bit levels")
     noise_grain_px: float = Field(default=0.0, description="sd of the blur that clumps the noise, px at 1024 px width")
     black_level: float = Field(default=0.0, description="display level the tone curve maps to black, 0..1 (the rest "

@@ -354,7 +354,9 @@ def sample_scene(config: SceneConfig, seed: int) -> Scene:
     post = _sample_post(c, rng)
     post = post.model_copy(update={"sharpen_luma": c.post.draw("sharpen_luma", scene_rng(seed, "sharpen_luma")),
                                    "noise_grain_px": c.post.draw("noise_grain_px", scene_rng(seed, "noise_grain")),
-                                   "black_level": c.post.draw("black_level", scene_rng(seed, "black_level"))})
+                                   "black_level": c.post.draw("black_level", scene_rng(seed, "black_level")),
+                                   "sharpen_threshold": c.post.draw("sharpen_threshold",
+                                                                    scene_rng(seed, "sharpen_threshold"))})
     texture_seed = int(rng.integers(0, 2**31 - 1))
     # the look of plaques and of the rim's mottle are drawn last, so that adding them left every earlier draw as it was
     plaque_look = PlaqueLook(**{name: c.plaques.draw(name, rng) for name in PlaqueLook.model_fields

@@ -21,7 +21,8 @@ STREAMS = ("well_offsets", "unevenness", "fibres", "desk", "fine", "residual", "
            "lysed_lace", "black_level", "rim_tears", "scratch_heaps",
            "scratch_ridge", "scratch_ridge_sides", "stain_pooling", "rim_mottle_grain",
            "plaque_edge_floor", "panel_shade", "crowd_thinning", "lysed_foam", "foam", "unevenness_light",
-           "lysed_rim_loss", "lysed_haze", "plaque_edge_grain", "plaque_edge_grain_width")
+           "lysed_rim_loss", "lysed_haze", "plaque_edge_grain", "plaque_edge_grain_width",
+           "sharpen_threshold")
 """The random streams of a scene's seed, in the order they are spawned (append new ones at the end)."""
 
 

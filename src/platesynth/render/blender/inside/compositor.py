@@ -241,6 +241,14 @@ def _post(chain: _Chain, post: Mapping[str, Any], seed: int, px_scale: float, wi
         detail = chain.mix("SUBTRACT", soft)
         if (luma := float(post["sharpen_luma"])) > 0.0:  # the luminance's detail in every channel, for that share
             detail = chain.mix("MIX", chain.gray(chain.luminance(detail)), factor=chain.value("Sharpen Luma", luma), a=detail)
+        if (threshold := float(post["sharpen_threshold"]) / 255.0) > 0.0:  # coring: only detail beyond it
+            channels = feed(tree, add(tree, "CompositorNodeSeparateColor"), Image=detail)
+            cored = add(tree, "CompositorNodeCombineColor")
+            for channel in ("Red", "Green", "Blue"):  # math nodes: the colour mix's darken and lighten, tried, cored only half
+                value = output(channels, channel)
+                within = chain.math("MAXIMUM", chain.math("MINIMUM", value, threshold), -threshold)
+                link(tree, chain.math("SUBTRACT", value, within), cored.inputs[channel])
+            detail = output(cored, "Image")
         chain.image = chain.mix("ADD", detail, factor=chain.value("Sharpen", strength))
     if (strength := enabled("noise")) is not None:
         pixel = output(chain.coordinates(), "Pixel")
