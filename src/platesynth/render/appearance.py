@@ -605,8 +605,8 @@ def draw_plaques(hinv, plaques, fourier, boxes, pixel_mm, from_below, top_radius
     the union of the plaques' clearing (0..1): a soft edge centred on the outline, frayed by ``fuzz_tile`` noise
     read around the plaque (radial fibres), a paler centre, clumps of cells kept in a ring inside the outline
     (``fuzz_tile`` read in plate millimetres, :data:`GRAIN_CELL_MM`) and a soft halo outside; ``rim_density``
-    (float32) the largest relative density added by a darker rim along an outline. ``ids`` (uint16) receives ``p + 1`` where the pixel
-    centre lies inside plaque ``p``'s outline and inside the visible interior of its well.
+    (float32) the largest relative density added by a darker rim along an outline. ``ids`` (uint16) receives
+    ``p + 1`` where the pixel centre lies inside plaque ``p``'s outline and inside the visible interior of its well.
     """
     n_harmonics = fourier.shape[1]
     for p in range(plaques.shape[0]):

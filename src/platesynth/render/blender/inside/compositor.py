@@ -244,7 +244,8 @@ def _post(chain: _Chain, post: Mapping[str, Any], seed: int, px_scale: float, wi
         if (threshold := float(post["sharpen_threshold"]) / 255.0) > 0.0:  # coring: only detail beyond it
             channels = feed(tree, add(tree, "CompositorNodeSeparateColor"), Image=detail)
             cored = add(tree, "CompositorNodeCombineColor")
-            for channel in ("Red", "Green", "Blue"):  # math nodes: the colour mix's darken and lighten, tried, cored only half
+            # per channel with math nodes: the colour mix's darken and lighten, tried first, cored only half the detail
+            for channel in ("Red", "Green", "Blue"):
                 value = output(channels, channel)
                 within = chain.math("MAXIMUM", chain.math("MINIMUM", value, threshold), -threshold)
                 link(tree, chain.math("SUBTRACT", value, within), cored.inputs[channel])
