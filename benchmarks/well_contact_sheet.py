@@ -146,6 +146,68 @@ def breakdown(pairs: list[tuple[Path, Path]], by: str = "class") -> str:
     return "\n".join(lines)
 
 
+def collect_tiles(rng, split: str, wells: int, tile: int, photos: str = "", renders: str = "", preset: str = "high",
+                  config: Path | None = None, first_scene: int = 10_000, interior: bool = False):
+    """The photo and render tiles of one sheet, before shuffling: two lists of ``(tile, description)``, ``wells`` of
+    each kind, drawn with ``rng`` (the sheet's seeded generator, which goes on to shuffle them).
+
+    Photos of ``split`` are taken in a random order, up to three matching wells of each (``photos``: a regular
+    expression on the class); renders are of scenes ``first_scene``, ``first_scene + 1``, ... of ``preset`` with
+    ``config`` over it, up to three matching wells of each (``renders``). Raises SystemExit where too few match."""
+    from platesynth.data.layout import read_counts_csv
+    from platesynth.io import list_images, read_image
+    from platesynth.metrics import crop_well, fit_plate_grid
+    from platesynth.render.raster import render_raster
+    from platesynth.scene import load_config, sample_scene
+
+    root = SHARED / "data" / "plaque12"
+    plates = [p for p in list_images(root / "plates") if in_split(p.name, split)]
+    if not plates:
+        raise SystemExit(f"no real photos of the {split} split under {SHARED}")
+    counts = {(row.image, row.row, row.col): row for row in read_counts_csv(root / "counts.csv")}
+    grid = (3, 4)  # the shared photos' 12-well plates; fit_plate_grid numbers the discs row by row
+    photos_wanted, renders_wanted = re.compile(photos), re.compile(renders)
+    real = []
+    for path in rng.permutation(plates):
+        plate_wells = [counts[(path.name, *divmod(index, grid[1]))] for index in range(grid[0] * grid[1])]
+        chosen = [int(i) for i in rng.permutation(len(plate_wells))
+                  if photos_wanted.search(photo_class(path.name, plate_wells[i].count))][:3]
+        if not chosen:
+            continue
+        image = read_image(path)
+        discs = fit_plate_grid(image, grid)
+        for index in chosen:
+            crop = crop_well(image, discs[index], tile)
+            crop = interior_only(crop) if interior else crop
+            well = plate_wells[index]
+            real.append((crop, f"{photo_class(path.name, well.count)} | {path.name} {well.well} | {centre_colour(crop)}"))
+        if len(real) >= wells:
+            break
+    if len(real) < wells:
+        raise SystemExit(f"only {len(real)} photo wells of the {split} split match --photos {photos!r}")
+    synthetic = []
+    scene_config = load_config(preset, path=config)
+    seed = 0
+    while len(synthetic) < wells:
+        if seed == MAX_SCENES:
+            raise SystemExit(f"only {len(synthetic)} wells of {MAX_SCENES} scenes match --renders {renders!r}")
+        scene = sample_scene(scene_config, first_scene + seed)
+        seed += 1
+        chosen = [int(i) for i in rng.permutation(len(scene.wells))
+                  if renders_wanted.search(render_class(scene, scene.wells[i]))][:3]
+        if not chosen:
+            continue
+        image = render_raster(scene, (1216, 944)).image
+        discs = fit_plate_grid(image, (scene.plate.rows, scene.plate.cols))
+        for index in chosen:
+            well = scene.wells[index]
+            crop = crop_well(image, discs[index], tile)
+            crop = interior_only(crop) if interior else crop
+            synthetic.append((crop, f"{render_class(scene, well)} | scene {first_scene + seed - 1} {well.label} | "
+                                    f"{centre_colour(crop)}"))
+    return real[:wells], synthetic[:wells]
+
+
 def main(argv: list[str] | None = None) -> None:
     """Write the sheet and its key, or score a judge's answers against the key."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -185,60 +247,10 @@ def main(argv: list[str] | None = None) -> None:
     import numpy as np
     from PIL import Image
 
-    from platesynth.data.layout import read_counts_csv
-    from platesynth.io import list_images, read_image
-    from platesynth.metrics import crop_well, fit_plate_grid
-    from platesynth.render.raster import render_raster
-    from platesynth.scene import load_config, sample_scene
-
     rng = np.random.default_rng(args.seed)
-    root = SHARED / "data" / "plaque12"
-    plates = [p for p in list_images(root / "plates") if in_split(p.name, args.split)]
-    if not plates:
-        raise SystemExit(f"no real photos of the {args.split} split under {SHARED}")
-    counts = {(row.image, row.row, row.col): row for row in read_counts_csv(root / "counts.csv")}
-    grid = (3, 4)  # the shared photos' 12-well plates; fit_plate_grid numbers the discs row by row
-    photos_wanted, renders_wanted = re.compile(args.photos), re.compile(args.renders)
-    real = []
-    for path in rng.permutation(plates):
-        wells = [counts[(path.name, *divmod(index, grid[1]))] for index in range(grid[0] * grid[1])]
-        chosen = [int(i) for i in rng.permutation(len(wells))
-                  if photos_wanted.search(photo_class(path.name, wells[i].count))][:3]
-        if not chosen:
-            continue
-        image = read_image(path)
-        discs = fit_plate_grid(image, grid)
-        for index in chosen:
-            tile = crop_well(image, discs[index], args.tile)
-            tile = interior_only(tile) if args.interior else tile
-            real.append((tile, f"{photo_class(path.name, wells[index].count)} | {path.name} {wells[index].well} | "
-                               f"{centre_colour(tile)}"))
-        if len(real) >= args.wells:
-            break
-    if len(real) < args.wells:
-        raise SystemExit(f"only {len(real)} photo wells of the {args.split} split match --photos {args.photos!r}")
-    synthetic = []
-    config = load_config(args.preset, path=args.config)
-    seed = 0
-    while len(synthetic) < args.wells:
-        if seed == MAX_SCENES:
-            raise SystemExit(f"only {len(synthetic)} wells of {MAX_SCENES} scenes match --renders {args.renders!r}")
-        scene = sample_scene(config, args.first_scene + seed)
-        seed += 1
-        chosen = [int(i) for i in rng.permutation(len(scene.wells))
-                  if renders_wanted.search(render_class(scene, scene.wells[i]))][:3]
-        if not chosen:
-            continue
-        image = render_raster(scene, (1216, 944)).image
-        discs = fit_plate_grid(image, (scene.plate.rows, scene.plate.cols))
-        for index in chosen:
-            well = scene.wells[index]
-            tile = crop_well(image, discs[index], args.tile)
-            tile = interior_only(tile) if args.interior else tile
-            synthetic.append((tile, f"{render_class(scene, well)} | scene {args.first_scene + seed - 1} {well.label} | "
-                                    f"{centre_colour(tile)}"))
-    tiles = ([(*tile, "real") for tile in real[: args.wells]]
-             + [(*tile, "synthetic") for tile in synthetic[: args.wells]])
+    real, synthetic = collect_tiles(rng, args.split, args.wells, args.tile, args.photos, args.renders, args.preset,
+                                    args.config, args.first_scene, args.interior)
+    tiles = [(*tile, "real") for tile in real] + [(*tile, "synthetic") for tile in synthetic]
     order = rng.permutation(len(tiles))
     columns = 8
     rows = -(-len(tiles) // columns)
