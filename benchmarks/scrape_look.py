@@ -7,8 +7,9 @@ half-side), photos and raster renders at the photos' size alike. Only the wells 
 green is crushed), and in each the scrape is the largest connected set of pale pixels (green above
 :data:`PALE_GREEN`) in the upper :data:`TOP_SHARE` of the tile, inside the stain, that starts at the rim (a pixel
 beyond :data:`RIM_START` of the stain's radius) and stays near the tile's vertical midline (a plaque near the top
-does not). Per well: the scrape's length and mean width (in tile pixels), how its width varies along it (the
-coefficient of variation of its rows' widths: a torn strip varies, an even stroke does not), its solidity (area over
+does not). Per well: the scrape's length (its longest extent) and mean width (its area over its length), in tile
+pixels, how its width varies along it (the coefficient of variation of its rows' widths: a torn strip varies, an
+even stroke does not), its solidity (area over
 convex hull: ragged edges and a blunt end lower it) and the mean 8-bit colour of its brightest quarter. Prints the
 share of wells with a scrape and the 10th, 50th and 90th percentiles per split and for the preset.
 
@@ -40,7 +41,50 @@ MIDLINE_SHARE = 0.5
 """...with its top within this share of the half-side from the tile's vertical midline."""
 STAIN_EDGE = 0.96
 """Pixels beyond this share of the tile's half-side are the wall, not the stain."""
+MIN_AREA = 15
+"""A scrape covers at least this many pixels."""
 COLUMNS = ("length", "width", "width cv", "solidity", "R", "G", "B")
+
+
+def scrape_measures(tile) -> tuple[float, ...] | None:
+    """The scrape's measures in one square RGB tile of :data:`TILE` pixels (``COLUMNS``: length and mean width in
+    pixels, the coefficient of variation of its rows' widths, its solidity, and the mean R, G, B of its brightest
+    quarter), or ``None`` where it holds none (see the module docstring)."""
+    import numpy as np
+    from skimage.measure import label, regionprops
+
+    yy, xx = np.mgrid[:TILE, :TILE]
+    half = TILE / 2
+    radius = np.hypot(yy - half + 0.5, xx - half + 0.5) / half
+    rgb = tile[..., :3].astype(np.float64)
+    pale = (rgb[..., 1] > PALE_GREEN) & (radius < STAIN_EDGE) & (yy < TOP_SHARE * TILE)
+    candidates = []
+    for region in regionprops(label(pale)):
+        rows, cols = region.coords[:, 0], region.coords[:, 1]
+        top = np.argmin(rows)
+        at_rim = radius[rows, cols].max() > RIM_START * STAIN_EDGE
+        near_midline = abs(cols[top] + 0.5 - half) < MIDLINE_SHARE * half
+        if at_rim and near_midline and region.area >= MIN_AREA:
+            candidates.append(region)
+    if not candidates:
+        return None
+    region = max(candidates, key=lambda r: r.area)
+    widths = np.bincount(region.coords[:, 0])
+    widths = widths[widths > 0]
+    pixels = rgb[region.coords[:, 0], region.coords[:, 1]]
+    brightness = pixels.mean(axis=1)
+    brightest = pixels[brightness >= np.percentile(brightness, 75)].mean(axis=0)
+    length = max(region.feret_diameter_max, 1.0)
+    return (length, region.area / length, widths.std() / widths.mean(), region.solidity, *brightest)
+
+
+def is_saturated(tile) -> bool:
+    """Whether a tile is a well of a saturated plate: the median green of its middle at most :data:`SATURATED_GREEN`."""
+    import numpy as np
+
+    yy, xx = np.mgrid[:TILE, :TILE]
+    middle = np.hypot(yy - TILE / 2 + 0.5, xx - TILE / 2 + 0.5) < 0.6 * TILE / 2
+    return float(np.median(tile[..., 1][middle])) <= SATURATED_GREEN
 
 
 def main(argv: list[str] | None = None) -> None:
@@ -50,50 +94,21 @@ def main(argv: list[str] | None = None) -> None:
     args = parser.parse_args(argv)
 
     import numpy as np
-    from skimage.measure import label, regionprops
 
     from platesynth.io import list_images, read_image
     from platesynth.metrics import crop_well, fit_plate_grid
     from platesynth.render.raster import render_raster
     from platesynth.scene import sample_scene
 
-    yy, xx = np.mgrid[:TILE, :TILE]
-    half = TILE / 2
-    radius = np.hypot(yy - half + 0.5, xx - half + 0.5) / half
-
-    def scrape(tile) -> tuple[float, ...] | None:
-        """The measures of the scrape in one tile, ``None`` where it holds none; raises nothing."""
-        rgb = tile[..., :3].astype(np.float64)
-        pale = (rgb[..., 1] > PALE_GREEN) & (radius < STAIN_EDGE) & (yy < TOP_SHARE * TILE)
-        parts = label(pale)
-        candidates = []
-        for region in regionprops(parts):
-            rows, cols = region.coords[:, 0], region.coords[:, 1]
-            top = np.argmin(rows)
-            at_rim = radius[rows, cols].max() > RIM_START * STAIN_EDGE
-            near_midline = abs(cols[top] + 0.5 - half) < MIDLINE_SHARE * half
-            if at_rim and near_midline and region.area >= 15:
-                candidates.append(region)
-        if not candidates:
-            return None
-        region = max(candidates, key=lambda r: r.area)
-        widths = np.bincount(region.coords[:, 0])
-        widths = widths[widths > 0]
-        pixels = rgb[region.coords[:, 0], region.coords[:, 1]]
-        brightness = pixels.mean(axis=1)
-        brightest = pixels[brightness >= np.percentile(brightness, 75)].mean(axis=0)
-        return (region.axis_major_length, region.area / max(region.axis_major_length, 1.0),
-                widths.std() / widths.mean(), region.solidity, *brightest)
-
     def measure(image, discs, wells) -> tuple[int, list]:
         """(saturated wells, scrapes found) among the wells ``wells`` (indices into ``discs``) of one image."""
         saturated, found = 0, []
         for index in wells:
             tile = crop_well(image, discs[index], TILE)
-            if np.median(tile[..., 1][radius < 0.6]) > SATURATED_GREEN:
+            if not is_saturated(tile):
                 continue
             saturated += 1
-            measures = scrape(tile)
+            measures = scrape_measures(tile)
             if measures is not None:
                 found.append(measures)
         return saturated, found

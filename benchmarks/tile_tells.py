@@ -48,10 +48,12 @@ def tile_statistics(tile) -> dict[str, float]:
     luminance = rgb @ np.array(LUMINANCE)
     middle, layer, corners = radius < CENTRE, radius < LAYER, radius > CORNERS
     stats = {f"middle {c}": float(rgb[..., i][middle].mean()) for i, c in enumerate("RGB")}
+    inside = luminance.copy()  # the layer's statistics see the layer only: beyond it, its median, not the wall
+    inside[~layer] = np.median(luminance[layer])
     for scale in SCALES_PX:
-        band = ndimage.gaussian_filter(luminance, scale / 2) - ndimage.gaussian_filter(luminance, scale)
+        band = ndimage.gaussian_filter(inside, scale / 2) - ndimage.gaussian_filter(inside, scale)
         stats[f"layer detail {scale:g} px"] = float(band[layer].std())
-    stats["layer unevenness"] = float(ndimage.gaussian_filter(luminance, LOW_BLUR_PX)[layer].std())
+    stats["layer unevenness"] = float(ndimage.gaussian_filter(inside, LOW_BLUR_PX)[layer].std())
     below, above = layer & (yy > 0.6 * side), layer & (yy < 0.4 * side)
     stats["bottom - top"] = float(luminance[below].mean() - luminance[above].mean())
     centre_level = luminance[radius < 0.5].mean()
