@@ -24,6 +24,7 @@ from pathlib import Path
 
 from preset_options import add_preset_options, preset_config
 from shared_split import in_split
+from well_contact_sheet import tile_radius
 
 ROOT = Path(__file__).resolve().parents[1]
 SHARED = Path(os.environ.get("PLATESYNTH_SHARED", ROOT.parent / "shared"))
@@ -53,9 +54,9 @@ def scrape_measures(tile) -> tuple[float, ...] | None:
     import numpy as np
     from skimage.measure import label, regionprops
 
-    yy, xx = np.mgrid[:TILE, :TILE]
+    yy = np.mgrid[:TILE, :TILE][0]
     half = TILE / 2
-    radius = np.hypot(yy - half + 0.5, xx - half + 0.5) / half
+    radius = tile_radius(TILE)
     rgb = tile[..., :3].astype(np.float64)
     pale = (rgb[..., 1] > PALE_GREEN) & (radius < STAIN_EDGE) & (yy < TOP_SHARE * TILE)
     candidates = []
@@ -82,9 +83,7 @@ def is_saturated(tile) -> bool:
     """Whether a tile is a well of a saturated plate: the median green of its middle at most :data:`SATURATED_GREEN`."""
     import numpy as np
 
-    yy, xx = np.mgrid[:TILE, :TILE]
-    middle = np.hypot(yy - TILE / 2 + 0.5, xx - TILE / 2 + 0.5) < 0.6 * TILE / 2
-    return float(np.median(tile[..., 1][middle])) <= SATURATED_GREEN
+    return float(np.median(tile[..., 1][tile_radius(TILE) < 0.6])) <= SATURATED_GREEN
 
 
 def main(argv: list[str] | None = None) -> None:

@@ -19,7 +19,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from well_contact_sheet import collect_tiles
+from well_contact_sheet import collect_tiles, tile_radius
 
 CENTRE = 0.6
 """The middle's colour is the mean within this share of the tile's half-side."""
@@ -43,8 +43,8 @@ def tile_statistics(tile) -> dict[str, float]:
 
     rgb = tile[..., :3].astype(np.float64)
     side = rgb.shape[0]
-    yy, xx = np.mgrid[:side, :side]
-    radius = np.hypot(yy - side / 2 + 0.5, xx - side / 2 + 0.5) / (side / 2)
+    yy = np.mgrid[:side, :side][0]
+    radius = tile_radius(side)
     luminance = rgb @ np.array(LUMINANCE)
     middle, layer, corners = radius < CENTRE, radius < LAYER, radius > CORNERS
     stats = {f"middle {c}": float(rgb[..., i][middle].mean()) for i, c in enumerate("RGB")}

@@ -59,14 +59,19 @@ def count_class(count: int | None) -> str:
     return "1-10 plaques" if count <= 10 else "over 10 plaques"
 
 
-def interior_only(tile):
-    """``tile`` (square, RGB uint8) with everything outside its middle disc (:data:`INTERIOR`) white."""
+def tile_radius(side: int):
+    """Each pixel's distance from the centre of a square tile of ``side`` pixels, in half-sides (the stain's edge lies
+    at about 0.97)."""
     import numpy as np
 
-    side = tile.shape[0]
     y, x = np.mgrid[:side, :side] - (side - 1) / 2
+    return np.hypot(x, y) / (side / 2)
+
+
+def interior_only(tile):
+    """``tile`` (square, RGB uint8) with everything outside its middle disc (:data:`INTERIOR`) white."""
     out = tile.copy()
-    out[np.hypot(x, y) > INTERIOR * side / 2] = 255
+    out[tile_radius(tile.shape[0]) > INTERIOR] = 255
     return out
 
 
