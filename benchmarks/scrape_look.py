@@ -44,6 +44,8 @@ STAIN_EDGE = 0.96
 """Pixels beyond this share of the tile's half-side are the wall, not the stain."""
 MIN_AREA = 15
 """A scrape covers at least this many pixels."""
+MIDDLE = 0.6
+"""A tile's middle, whose green tells a saturated plate, lies within this share of its half-side."""
 COLUMNS = ("length", "width", "width cv", "solidity", "R", "G", "B")
 
 
@@ -83,7 +85,7 @@ def is_saturated(tile) -> bool:
     """Whether a tile is a well of a saturated plate: the median green of its middle at most :data:`SATURATED_GREEN`."""
     import numpy as np
 
-    return float(np.median(tile[..., 1][tile_radius(TILE) < 0.6])) <= SATURATED_GREEN
+    return float(np.median(tile[..., 1][tile_radius(TILE) < MIDDLE])) <= SATURATED_GREEN
 
 
 def main(argv: list[str] | None = None) -> None:

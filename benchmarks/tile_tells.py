@@ -33,13 +33,14 @@ RINGS = (0.85, 0.9, 0.93, 0.95, 0.97, 0.99, 1.01, 1.04, 1.08, 1.15)
 """Edges of the rings, shares of the tile's half-side, from inside the stain's edge out over the wall."""
 CORNERS = 1.2
 """Beyond this share of the half-side (the tile's corners) lie the plastic and the light box."""
-LUMINANCE = (0.299, 0.587, 0.114)
 
 
 def tile_statistics(tile) -> dict[str, float]:
     """The statistics of one square RGB tile (see the module docstring), by name."""
     import numpy as np
     from scipy import ndimage
+
+    from platesynth.render.look import LUMINANCE
 
     rgb = tile[..., :3].astype(np.float64)
     side = rgb.shape[0]
