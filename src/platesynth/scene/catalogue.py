@@ -317,8 +317,13 @@ class ArtifactsConfig(Section):
                              "mean number of tears per well: short, wide strips where the layer came off at the rim "
                              "(a pipette tip or the aspiration, anywhere around the well), drawn as the plate's "
                              "scratches are; pale lesions a counting model must not take for plaques")
-    rim_tear_length_mm: Dist = number([1.0, 3.0], 0.1, 10.0, "mm", "each rim tear's length, from the rim inward")
+    rim_tear_length_mm: Dist = number([1.0, 3.0], 0.1, 10.0, "mm", "each rim tear's length, from the rim at "
+                                      "rim_tear_tilt_deg off the radius")
     rim_tear_width_mm: Dist = number([0.6, 1.5], 0.05, 5.0, "mm", "each rim tear's width")
+    rim_tear_tilt_deg: Dist = number([0.0, 60.0], 0.0, 90.0, "deg",
+                                     "each rim tear's angle off the well's radius, to either side (drawn per tear): "
+                                     "0 straight inward, a bite; near 90 along the rim, a shallow crescent of bare "
+                                     "plastic hugging it, as on the photos' torn wells")
     marker: float = probability(0.6, "chance of marker writing on the plate")
     marker_strokes: Dist = number({"integers": [1, 3]}, 1, 20, "strokes", "number of pen strokes", integer=True)
     marker_size_mm: Dist = number([3.0, 7.0], 0.5, 40.0, "mm", "length of a pen stroke (strokes stand 0.6 of it apart)")

@@ -74,8 +74,6 @@ RIM_START = 1.02
 the layer's edge, so that they open onto it."""
 SCRATCH_REACH, DEBRIS_REACH = 0.95, 0.97
 """Other scratches start, and specks lie, within this fraction of the well's radius."""
-RIM_TEAR_TILT_DEG = 60.0
-"""A rim tear runs inward from the rim at up to this angle off the well's radius, either side."""
 MARKER_JITTER_MM = 1.0
 """Spread of the marker writing's start around the free corner, mm per axis."""
 
@@ -555,9 +553,9 @@ def _pipette_scratch(
 
 def _rim_tears(rng: np.random.Generator, section: ArtifactsConfig, wells: list[Well], radius: float) -> list[Scratch]:
     """The tears where the layer came off at the rim (``artifacts.rim_tears`` per well, Poisson): each a short, wide,
-    straight scratch from just outside the rim, anywhere around the well, running inward up to
-    :data:`RIM_TEAR_TILT_DEG` off the radius. Drawn from ``rng``, a stream of their own, after every other draw; an
-    emptied well has no layer to tear."""
+    straight scratch from just outside the rim, anywhere around the well, running inward at ``rim_tear_tilt_deg`` off
+    the radius, to either side. Drawn from ``rng``, a stream of their own, after every other draw; an emptied well has
+    no layer to tear."""
     rate = section.draw("rim_tears", rng)
     tears = []
     for well in wells:
@@ -566,7 +564,8 @@ def _rim_tears(rng: np.random.Generator, section: ArtifactsConfig, wells: list[W
         center = np.array(well.center_mm)
         for _ in range(int(rng.poisson(rate))):
             angle = rng.uniform(0.0, 2.0 * math.pi)
-            heading = angle + math.pi + math.radians(rng.uniform(-RIM_TEAR_TILT_DEG, RIM_TEAR_TILT_DEG))
+            side = 1.0 if rng.random() < 0.5 else -1.0
+            heading = angle + math.pi + side * math.radians(section.draw("rim_tear_tilt_deg", rng))
             start = center + radius * RIM_START * np.array([math.cos(angle), math.sin(angle)])
             end = start + section.draw("rim_tear_length_mm", rng) * np.array([math.cos(heading), math.sin(heading)])
             tears.append(Scratch(well=well.id, points_mm=(_tuple2(start), _tuple2(end)),
