@@ -39,6 +39,8 @@ SHARED = Path(os.environ.get("PLATESYNTH_SHARED", ROOT.parent / "shared"))
 TILE_LINE = re.compile(r"row (\d+), column (\d+): (real|synthetic)")
 KEY_FIELDS = re.compile(r"^row (\d+), column (\d+): (?:real|synthetic) \| ([^|]+?) \| (\S+(?: \d+)?)", re.MULTILINE)
 """A key line's tile, class and plate (a photo's file name, or ``scene N``)."""
+RENDER_WELL = re.compile(r"^row (\d+), column (\d+): synthetic \| [^|]+ \| scene (\d+) (\w+) \|", re.MULTILINE)
+"""A render's key line: its tile, scene and well."""
 CENTRE = 0.3
 """Half-side of the middle of a tile whose median colour a key line gives, share of the tile's side."""
 # a scene whose stain is less saturated than this is one of the pale, bluish plates (stain.pale_plates): the
@@ -124,19 +126,41 @@ def centre_colour(tile) -> str:
     return "centre RGB " + " ".join(str(int(v)) for v in np.median(tile[low:high, low:high].reshape(-1, 3), axis=0))
 
 
-def breakdown(pairs: list[tuple[Path, Path]], by: str = "class") -> str:
-    """Calls right per class of tile (``by="class"``) or per plate (``"plate"``: a photo, or a rendered scene) over
-    (key, answers) pairs: a table of the group, tiles judged and calls right.
+def rim_torn_wells(scene_seed: int, preset: str = "high", config: Path | None = None) -> set[str]:
+    """Labels of the wells of a rendered scene that hold a tear at the rim (``artifacts.rim_tears``): the scratches
+    beyond those of the same scene drawn without tears, which draw from a stream of their own after all else."""
+    from platesynth.scene import load_config, sample_scene
+
+    torn = sample_scene(load_config(preset, path=config), scene_seed)
+    plain = sample_scene(load_config(preset, path=config, overrides={"artifacts.rim_tears": 0.0}), scene_seed)
+    tears = torn.artifacts.scratches[len(plain.artifacts.scratches):]
+    labels = {well.id: well.label for well in torn.wells}
+    return {labels[tear.well] for tear in tears}
+
+
+def breakdown(pairs: list[tuple[Path, Path]], by: str = "class", preset: str = "high",
+              config: Path | None = None) -> str:
+    """Calls right per class of tile (``by="class"``), per plate (``"plate"``: a photo, or a rendered scene) or, for
+    the renders, by whether their well holds a tear at the rim (``"rim-tear"``, the photos by class; the sheets'
+    ``preset`` and ``config`` give the scenes) over (key, answers) pairs: a table of the group, tiles judged and calls
+    right.
 
     A render is called right when found (called synthetic), a photo when called real; a group where most calls are
     right is one that the judges tell apart.
     """
     right: dict[str, int] = {}
     judged: dict[str, int] = {}
+    torn_wells: dict[int, set[str]] = {}
     for key_path, answers_path in pairs:
         key = _read_key(key_path)
         fields = {(r, c): (name, plate) for r, c, name, plate in KEY_FIELDS.findall(key_path.read_text())}
-        classes = {tile: name if by == "class" else plate for tile, (name, plate) in fields.items()}
+        classes = {tile: plate if by == "plate" else name for tile, (name, plate) in fields.items()}
+        if by == "rim-tear":
+            for r, c, scene_seed, label in RENDER_WELL.findall(key_path.read_text()):
+                seed = int(scene_seed)
+                if seed not in torn_wells:
+                    torn_wells[seed] = rim_torn_wells(seed, preset, config)
+                classes[(r, c)] = "render, a rim tear" if label in torn_wells[seed] else "render, no rim tear"
         if set(classes) != set(key):
             raise SystemExit(f"{key_path}: a key without the tiles' classes (made before they were written); make the "
                              "sheet again with the same options")
@@ -234,14 +258,17 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--score", type=Path, help="a judge's answers to score against OUT's key (writes nothing)")
     parser.add_argument("--breakdown", nargs="+", metavar="SHEET=ANSWERS",
                         help="calls right per class of tile over these sheets' judges (writes nothing; no --out)")
-    parser.add_argument("--by", choices=("class", "plate"), default="class",
-                        help="group --breakdown's calls by class of tile or by plate (photo or rendered scene)")
+    parser.add_argument("--by", choices=("class", "plate", "rim-tear"), default="class",
+                        help="group --breakdown's calls by class of tile, by plate (photo or rendered scene) or, for "
+                             "the renders, by whether their well holds a tear at the rim (with the sheets' --preset "
+                             "and --config)")
     args = parser.parse_args(argv)
     if args.breakdown:
         pairs = [item.split("=", 1) for item in args.breakdown]
         if any(len(pair) != 2 for pair in pairs):
             raise SystemExit("--breakdown takes SHEET.png=ANSWERS.txt pairs")
-        print(breakdown([(Path(f"{sheet}.key.txt"), Path(answers)) for sheet, answers in pairs], by=args.by))
+        print(breakdown([(Path(f"{sheet}.key.txt"), Path(answers)) for sheet, answers in pairs], by=args.by,
+                        preset=args.preset, config=args.config))
         return
     if args.out is None:
         parser.error("--out is required (the sheet to write, or the sheet whose key --score reads)")

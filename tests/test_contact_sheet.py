@@ -115,3 +115,22 @@ def test_interior_keeps_the_middle_disc_and_whitens_the_rest(sheet):
     assert (inside[50, 50] == 40).all() and (inside[50, 4] == 40).all()  # 45.5 px from the centre: inside 47
     assert (inside[50, 1] == 255).all() and (inside[0, 0] == 255).all()  # 48.5 px, the corner: outside
     assert (tile == 40).all()  # the tile itself is untouched
+
+
+def test_breakdown_by_rim_tear_splits_the_renders_by_their_wells_tears(sheet, tmp_path):
+    config = tmp_path / "torn.yaml"
+    config.write_text("artifacts:\n  rim_tears: 0.3\n  rim_tear_tilt_deg: [72.0, 86.0]\n")
+    torn = sheet.rim_torn_wells(5, config=config)
+    scene_labels = ["A1", "A2", "A3", "A4", "B1", "B2", "B3", "B4", "C1", "C2", "C3", "C4"]
+    with_tear = sorted(torn)[0]
+    without = next(label for label in scene_labels if label not in torn)
+    key = tmp_path / "s.png.key.txt"
+    key.write_text(f"row 0, column 0: synthetic | render saturated plate, 0 plaques | scene 5 {with_tear} | centre RGB 1 2 3\n"
+                   f"row 0, column 1: synthetic | render saturated plate, 0 plaques | scene 5 {without} | centre RGB 1 2 3\n"
+                   "row 0, column 2: real | photo PR8, 0 plaques | PR8_plate4.jpg B1 | centre RGB 1 2 3\n")
+    answers = tmp_path / "a.txt"
+    answers.write_text("row 0, column 0: real\nrow 0, column 1: synthetic\nrow 0, column 2: real\n")
+    table = [" ".join(line.split()) for line in sheet.breakdown([(key, answers)], by="rim-tear", config=config).splitlines()]
+    assert table == ["rim-tear calls right", "photo PR8, 0 plaques 1 1 (100%)", "render, a rim tear 1 0 (0%)",
+                     "render, no rim tear 1 1 (100%)"]
+    assert sheet.rim_torn_wells(5) == set()  # high draws no tear
