@@ -37,10 +37,9 @@ SHARED = Path(os.environ.get("PLATESYNTH_SHARED", ROOT.parent / "shared"))
 
 
 TILE_LINE = re.compile(r"row (\d+), column (\d+): (real|synthetic)")
-KEY_FIELDS = re.compile(r"^row (\d+), column (\d+): (?:real|synthetic) \| ([^|]+?) \| (\S+(?: \d+)?)", re.MULTILINE)
-"""A key line's tile, class and plate (a photo's file name, or ``scene N``)."""
-RENDER_WELL = re.compile(r"^row (\d+), column (\d+): synthetic \| [^|]+ \| scene (\d+) (\w+) \|", re.MULTILINE)
-"""A render's key line: its tile, scene and well."""
+KEY_FIELDS = re.compile(r"^row (\d+), column (\d+): (?:real|synthetic) \| ([^|]+?) \| (\S+(?: \d+)?) (\w+)",
+                        re.MULTILINE)
+"""A key line's tile, class, plate (a photo's file name, or ``scene N``) and well."""
 CENTRE = 0.3
 """Half-side of the middle of a tile whose median colour a key line gives, share of the tile's side."""
 # a scene whose stain is less saturated than this is one of the pale, bluish plates (stain.pale_plates): the
@@ -153,14 +152,15 @@ def breakdown(pairs: list[tuple[Path, Path]], by: str = "class", preset: str = "
     torn_wells: dict[int, set[str]] = {}
     for key_path, answers_path in pairs:
         key = _read_key(key_path)
-        fields = {(r, c): (name, plate) for r, c, name, plate in KEY_FIELDS.findall(key_path.read_text())}
-        classes = {tile: plate if by == "plate" else name for tile, (name, plate) in fields.items()}
+        fields = {(r, c): (name, plate, well) for r, c, name, plate, well in KEY_FIELDS.findall(key_path.read_text())}
+        classes = {tile: plate if by == "plate" else name for tile, (name, plate, _) in fields.items()}
         if by == "rim-tear":
-            for r, c, scene_seed, label in RENDER_WELL.findall(key_path.read_text()):
-                seed = int(scene_seed)
-                if seed not in torn_wells:
-                    torn_wells[seed] = rim_torn_wells(seed, preset, config)
-                classes[(r, c)] = "render, a rim tear" if label in torn_wells[seed] else "render, no rim tear"
+            for tile, (_, plate, well) in fields.items():
+                if plate.startswith("scene "):
+                    seed = int(plate.split()[1])
+                    if seed not in torn_wells:
+                        torn_wells[seed] = rim_torn_wells(seed, preset, config)
+                    classes[tile] = "render, a rim tear" if well in torn_wells[seed] else "render, no rim tear"
         if set(classes) != set(key):
             raise SystemExit(f"{key_path}: a key without the tiles' classes (made before they were written); make the "
                              "sheet again with the same options")
