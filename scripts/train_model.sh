@@ -8,6 +8,7 @@
 #   DATA=/scratch/plates MODEL=/scratch/model THREADS=4 scripts/train_model.sh
 #   HIGH_CONFIG=my-look.yaml scripts/train_model.sh   # the high part with a configuration over the preset
 #   EPOCHS=20 SEED=3 scripts/train_model.sh           # the shortened recipe the looks' counting checks use
+#   SCRATCH_WEIGHT=10 scripts/train_model.sh          # the plaque loss weighs the renders' scratches 1 + 10 times
 #   EPOCHS=20 SEEDS="1 2 3" JOBS=3 THREADS=4 scripts/train_model.sh   # one model per seed, $MODEL-s1 ..., three at a
 #                                                     # time (a GPU machine or a node with cores to spare)
 #
@@ -27,6 +28,7 @@ SEEDS=${SEEDS:-}
 JOBS=${JOBS:-1}
 DEVICE=${DEVICE:-auto}
 HIGH_CONFIG=${HIGH_CONFIG:-}
+SCRATCH_WEIGHT=${SCRATCH_WEIGHT:-0}
 
 # name, images, seed, preset, overrides: rendered at the model's working size (512 px); fewer negative plates than
 # the preset's half, so that more training patches hold plaques; the fourth source is high with crowded wells of
@@ -46,7 +48,7 @@ train() {
     platesynth train \
         --data "$DATA/high" --data "$DATA/medium" --data "$DATA/diverse" --data "$DATA/crowded" --mix 0.48,0.16,0.16,0.2 \
         --out "$1" --epochs "$EPOCHS" --steps "$STEPS" --batch-size 4 --patch 256x256 --lr 2e-3 \
-        --val-fraction 0.06 --max-val 48 --seed "$2" --threads "$THREADS" --workers "$WORKERS" --device "$DEVICE"
+        --val-fraction 0.06 --max-val 48 --scratch-weight "$SCRATCH_WEIGHT" --seed "$2" --threads "$THREADS" --workers "$WORKERS" --device "$DEVICE"
 }
 if [ -z "$SEEDS" ]; then
     train "$MODEL" "$SEED"

@@ -20,7 +20,7 @@ from platesynth.render.look import (
     wall_line_phase,
 )
 from platesynth.render.masks import clean_isolated_pixels
-from platesynth.render.raster import camera_view, parallax, plate_relief, render_raster, wells_in_view
+from platesynth.render.raster import camera_view, parallax, plate_relief, render_raster, scratch_map, wells_in_view
 from platesynth.render.result import plaque_counts
 from platesynth.render.sampling import ring, smeared_ring
 from platesynth.render.textures import scene_textures
@@ -570,3 +570,21 @@ def test_the_side_a_plate_was_tilted_to_faces_the_image_as_documented(angle, dar
         side = {"bottom": dy > reach, "top": dy < -reach, "right": dx > reach, "left": dx < -reach}
         assert red[rows[side[darker]], cols[side[darker]]].mean() < red[rows[side[opposite[darker]]],
                                                                         cols[side[opposite[darker]]]].mean() - 3
+
+
+def test_scratch_map_lies_where_the_image_shows_the_scrapes():
+    scene = small_scene("high", 5, **{"artifacts.pipette_scratch": 1.0, "plaques.negative_plate": 1.0})
+    size = (512, 384)
+    result = render_raster(scene, size)
+    scraped = scratch_map(scene, size)
+    assert scraped.shape == (384, 512) and scraped.dtype == np.float32 and scraped.max() <= 1.0
+    brightness = result.image.astype(float).sum(axis=2)
+    for well in np.unique(result.wells)[1:]:
+        inside = result.wells == well
+        on = inside & (scraped > 0.5)
+        assert on.sum() >= 3  # a scrape in every well
+        # the layer where the map says it is scraped off is paler than the well's layer elsewhere
+        assert np.median(brightness[on]) > np.median(brightness[inside & (scraped == 0)]) + 30
+    clean = small_scene("high", 5, **{"artifacts.pipette_scratch": 0.0, "artifacts.extra_scratches": 0.0,
+                                      "artifacts.rim_tears": 0.0})
+    assert not clean.artifacts.scratches and not scratch_map(clean, size).any()

@@ -11,7 +11,14 @@ import torch.nn.functional as F
 from skimage.draw import disk
 
 from platesynth.errors import DatasetError, ParameterError
-from platesynth.segment.data import Augmentation, augment, make_targets, normalize_image, resize_labels
+from platesynth.segment.data import (
+    Augmentation,
+    augment,
+    make_targets,
+    normalize_image,
+    resize_labels,
+    scratch_weights,
+)
 from platesynth.segment.loss import branch_loss, outside_well_penalty, segmentation_loss
 from platesynth.segment.matching import match_instances
 from platesynth.segment.model import (
@@ -101,6 +108,13 @@ def test_branch_loss_matches_the_stardist_formula():
     exact, exact_parts = branch_loss(logits, dist_true, prob_true, dist_true, 0.2, 0.0)
     assert float(exact_parts["dist"]) == 0.0
     assert float(exact) == pytest.approx(float(F.binary_cross_entropy_with_logits(logits, prob_true)), rel=1e-6)
+    # per-pixel weights scale each pixel's probability term; the mean stays over all pixels
+    weight = 1 + 9 * (torch.rand(2, 1, 5, 6, generator=generator) > 0.8)
+    _, weighted = branch_loss(logits, dist_pred, prob_true, dist_true, 0.2, 1e-4, prob_weight=weight)
+    w = weight.numpy()
+    assert float(weighted["prob"]) == pytest.approx(-np.mean(w * (p * np.log(sig) + (1 - p) * np.log(1 - sig))), rel=1e-5)
+    _, ones = branch_loss(logits, dist_pred, prob_true, dist_true, 0.2, 1e-4, prob_weight=torch.ones_like(weight))
+    assert float(ones["prob"]) == pytest.approx(bce, rel=1e-5)
 
 
 def test_outside_well_penalty_and_total_loss():
@@ -117,6 +131,11 @@ def test_outside_well_penalty_and_total_loss():
         parts["wells_dist"] + parts["plaques_dist"] + 1e-4 * (parts["wells_reg"] + parts["plaques_reg"])), rel=1e-5)
     assert float(penalised.detach()) == pytest.approx(float(plain.detach()) + 2.0 * parts_with["outside_well"], rel=1e-6)
     assert "outside_well" not in parts
+    scratches = np.zeros((32, 48), np.float32)
+    scratches[20:24, 30:44] = 1.0  # scraped stain beside the second well's middle: only the plaque branch weighs it
+    targets = {k: v[None] for k, v in make_targets(mask, plaques, TINY, scratches, 5.0).items()}
+    _, weighted = segmentation_loss(outputs, targets)
+    assert weighted["plaques_prob"] > parts["plaques_prob"] and weighted["wells_prob"] == parts["wells_prob"]
 
 
 def test_nms_and_drawing_recover_true_objects_at_another_size():
@@ -166,7 +185,10 @@ def test_augmentation_keeps_image_and_masks_aligned():
     image = np.where(wells[..., None] > 0, 0.2, 0.9).astype(np.float32) * np.ones(3, np.float32)
     plaques = discs((96, 128), [(48, 40, 5)])
     for _ in range(5):
-        out_image, out_wells, out_plaques = augment(image, wells, plaques, 1.0, (64, 64), Augmentation(noise_sigma=(0, 0)), rng)
+        out_image, out_wells, out_plaques, none = augment(
+            image, wells, plaques, 1.0, (64, 64), Augmentation(noise_sigma=(0, 0)), rng
+        )
+        assert none is None
         assert out_image.shape == (64, 64, 3) and out_wells.shape == out_plaques.shape == (64, 64)
         assert out_wells.dtype == np.uint8 and out_plaques.dtype == np.uint16
         assert set(np.unique(out_wells)) <= {0, 1, 2}
@@ -174,6 +196,46 @@ def test_augmentation_keeps_image_and_masks_aligned():
             # dark inside wells, bright outside, whatever the geometry and intensity changes
             assert out_image[out_wells > 0].mean() < out_image[out_wells == 0].mean()
         assert np.all(out_wells[out_plaques > 0] > 0)
+
+
+def test_scratch_map_follows_the_masks_and_leaves_the_draws_as_they_were():
+    wells = discs((96, 128), [(48, 40, 20), (48, 90, 20)], np.uint8)
+    image = np.where(wells[..., None] > 0, 0.2, 0.9).astype(np.float32) * np.ones(3, np.float32)
+    plaques = discs((96, 128), [(48, 40, 5), (40, 95, 8)])
+    scratches = (plaques == 2).astype(np.float32)  # a map that marks one plaque: it must stay on it
+    for seed in range(6):
+        plain = augment(image, wells, plaques, 1.2, (64, 64), Augmentation(), np.random.default_rng(seed))
+        out = augment(image, wells, plaques, 1.2, (64, 64), Augmentation(), np.random.default_rng(seed), scratches)
+        for a, b in zip(plain[:3], out[:3]):
+            np.testing.assert_array_equal(a, b)
+        marked, second = out[3] > 0.5, out[2] == 2
+        assert out[3].shape == (64, 64) and out[3].dtype == np.float32
+        if second.sum() > 20:
+            assert (marked & second).sum() / (marked | second).sum() > 0.8
+
+
+def test_scratch_weights_keep_a_thin_scratch_on_the_grid():
+    scratches = np.zeros((9, 12), np.float32)
+    scratches[:, 5] = 0.5  # one pixel wide, in an odd column that grid 2 skips
+    weights = scratch_weights(scratches, grid=2, weight=10.0)
+    assert weights.shape == (5, 6)
+    np.testing.assert_allclose(weights[:, 2:4], 6.0)  # cells 2 and 3 stand for columns 4 and 6, beside it
+    np.testing.assert_allclose(np.delete(weights, [2, 3], axis=1), 1.0)
+    np.testing.assert_array_equal(scratch_weights(scratches, grid=1, weight=4.0)[:, 5], 3.0)
+
+
+def test_make_targets_weighs_scratches_only_when_asked():
+    wells = discs((64, 64), [(32, 32, 25)], np.uint8)
+    plaques = discs((64, 64), [(30, 30, 6)])
+    scratches = np.zeros((64, 64), np.float32)
+    scratches[40:44, 10:50] = 1.0
+    assert "plaques_weight" not in make_targets(wells, plaques, TINY)
+    assert "plaques_weight" not in make_targets(wells, plaques, TINY, scratches, 0.0)
+    weight = make_targets(wells, plaques, TINY, scratches, 3.0)["plaques_weight"]
+    grid = TINY.branches["plaques"].grid
+    assert tuple(weight.shape) == (1, 64 // grid, 64 // grid)
+    assert float(weight.max()) == 4.0 and float(weight.min()) == 1.0
+    assert float(weight[0, 42 // grid, 30 // grid]) == 4.0 and float(weight[0, 10 // grid, 30 // grid]) == 1.0
 
 
 def test_normalisation_uses_joint_percentiles():

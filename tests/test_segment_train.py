@@ -17,9 +17,11 @@ from typer.testing import CliRunner
 from platesynth.cli import app
 from platesynth.data.layout import list_items, load_item, read_counts_csv
 from platesynth.errors import DatasetError
+from platesynth.render.raster import scratch_map
 from platesynth.render.result import RenderResult
+from platesynth.scene import load_scene
 from platesynth.segment.counts import evaluate_counts, sort_wells
-from platesynth.segment.data import SegmentationDataset
+from platesynth.segment.data import SegmentationDataset, pad_to_multiple, scratch_weights
 from platesynth.segment.loss import segmentation_loss
 from platesynth.segment.matching import evaluate_masks
 from platesynth.segment.model import ModelConfig, StarDistTwoBranch, UnfinishedModelError, load_model
@@ -78,6 +80,28 @@ def test_loss_falls_on_rendered_images(rendered):
         optimizer.step()
         losses.append(float(loss.detach()))
     assert losses[-1] < 0.6 * losses[0]
+
+
+def test_scratch_weights_come_from_each_items_scene(rendered, tmp_path):
+    items = list_items(rendered)
+    weighted = SegmentationDataset(items, TINY, scratch_weight=10.0)
+    grid = TINY.branches["plaques"].grid
+    scraped_somewhere = False
+    for index, item in enumerate(items):
+        sample = weighted[index]
+        scraped = scratch_map(load_scene(item.params_path), (128, 96))  # the working size: no resizing
+        expected = scratch_weights(pad_to_multiple(scraped, TINY.size_multiple), grid, 10.0)
+        np.testing.assert_allclose(sample["plaques_weight"][0].numpy(), expected, rtol=1e-6)
+        scraped_somewhere |= bool((expected > 2).any())
+        plain = SegmentationDataset(items, TINY)[index]
+        assert "plaques_weight" not in plain and torch.equal(plain["plaques_prob"], sample["plaques_prob"])
+    assert scraped_somewhere
+    # a photo (no scene) weighs every pixel 1
+    photos = _copy(rendered, tmp_path)
+    shutil.rmtree(photos / "params")
+    (photos / "manifest.json").unlink()
+    sample = SegmentationDataset(list_items(photos), TINY, scratch_weight=10.0)[0]
+    assert torch.all(sample["plaques_weight"] == 1.0)
 
 
 class _Stop(Exception):

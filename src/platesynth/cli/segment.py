@@ -105,6 +105,14 @@ def train_command(
     seed: Annotated[int, typer.Option("--seed", help="Seed of the split, initial weights, sampling and augmentation.")] = 0,
     augment: Annotated[bool, typer.Option("--augment/--no-augment", help="Flips, rotations, scale, intensity, noise.")] = True,
     within_well: Annotated[float, typer.Option("--within-well", help="Weight of the penalty on plaques outside wells.")] = 0.0,
+    scratch_weight: Annotated[
+        float,
+        typer.Option(
+            "--scratch-weight",
+            help="Extra weight of the plaque probability loss where a rendered item's scratches scraped the stain "
+            "off (pale lesions that are not plaques; 0: none).",
+        ),
+    ] = 0.0,
     tune: Annotated[
         bool, typer.Option("--tune/--no-tune", help="Tune probability/NMS thresholds on the validation images.")
     ] = True,
@@ -147,6 +155,7 @@ def train_command(
             seed=seed,
             augment=augment,
             within_well_weight=within_well,
+            scratch_weight=scratch_weight,
             tune_thresholds=tune,
             min_resolved_cells=min_resolved_cells,
             num_workers=workers,

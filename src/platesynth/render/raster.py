@@ -28,7 +28,7 @@ from platesynth.render.textures import noise_grid, scene_textures
 from platesynth.scene.concrete import PlateGeometry, Scene, Well
 from platesynth.scene.streams import scene_rng
 
-__all__ = ["REFERENCE_WIDTH", "View", "camera_view", "render_raster", "srgb_to_linear", "texels_per_mm"]
+__all__ = ["REFERENCE_WIDTH", "View", "camera_view", "render_raster", "scratch_map", "srgb_to_linear", "texels_per_mm"]
 
 
 @lru_cache(maxsize=8)
@@ -218,3 +218,17 @@ def render_raster(scene: Scene, size: tuple[int, int] = (1024, 768)) -> RenderRe
     renumber(plaque_ids)
     well_info = [WellInfo(id=w.id, row=w.row, col=w.col, label=w.label, countable=w.countable) for w in scene.wells]
     return RenderResult(image=image_u8, wells=wells_mask, plaques=plaque_ids, well_info=well_info)
+
+
+def scratch_map(scene: Scene, size: tuple[int, int]) -> np.ndarray:
+    """Where the scene's scratches (the scrapes, stray scratches and tears at the rim) took the stain off, in the
+    pixels of an image of ``size`` = (width, height): the share of the stain scraped off, 0..1.
+
+    The same drawing :func:`render_raster` shades, so it lies where any renderer's image of the scene shows the
+    scratches (the renderers share the camera and the plate geometry, as their masks do). Training weighs these
+    pixels, pale lesions that are not plaques, with ``scratch_weight`` (:class:`platesynth.segment.train.TrainConfig`).
+    """
+    width, height = check_size(size)
+    view = camera_view(scene, width, height)
+    wells, top_centres, top_radius = wells_in_view(scene, view)
+    return appearance.draw_well_content(scene, view, wells, top_centres, top_radius, scene_textures(scene)).scratched

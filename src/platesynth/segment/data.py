@@ -12,6 +12,8 @@ from scipy import ndimage
 from skimage.transform import resize
 
 from platesynth.data.layout import DatasetItem, load_item
+from platesynth.render.raster import scratch_map
+from platesynth.scene import load_scene
 from platesynth.segment.model import ModelConfig
 from platesynth.segment.targets import branch_targets
 
@@ -75,27 +77,33 @@ def _intensity(image: np.ndarray, aug: Augmentation, rng: np.random.Generator) -
 
 
 def crop_and_resize(
-    arrays: tuple[np.ndarray, np.ndarray, np.ndarray],
+    arrays: Sequence[np.ndarray],
     scale: float,
     patch: tuple[int, int],
     rng: np.random.Generator,
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Cut a random window of ``patch / scale`` pixels out of (image, wells, plaques) and resize it to ``patch``.
+) -> tuple[np.ndarray, ...]:
+    """Cut a random window of ``patch / scale`` pixels out of (image, wells, plaques[, scratches]) and resize it to
+    ``patch``: the image and the scratch map linearly, the masks to the nearest pixel.
 
     Windows larger than the image are zero-padded (background in the masks).
     """
-    image, wells, plaques = arrays
+    image = arrays[0]
     window = (max(1, round(patch[0] / scale)), max(1, round(patch[1] / scale)))
     starts = [int(rng.integers(min(0, s - w), max(0, s - w) + 1)) for s, w in zip(image.shape[:2], window)]
     out = []
-    for array in (image, wells, plaques):
+    for array in arrays:
         padded = np.zeros(window + array.shape[2:], array.dtype)
         src = tuple(slice(max(0, a), min(s, a + w)) for a, s, w in zip(starts, array.shape[:2], window))
         dst = tuple(slice(sl.start - a, sl.stop - a) for sl, a in zip(src, starts))
         padded[dst] = array[src]
         out.append(padded)
-    image = out[0] if window == patch else resize(out[0], patch, order=1, anti_aliasing=scale < 1, preserve_range=True)
-    return image.astype(np.float32), resize_labels(out[1], patch), resize_labels(out[2], patch)
+
+    def linear(array: np.ndarray) -> np.ndarray:
+        if window == patch:
+            return array.astype(np.float32)
+        return resize(array, patch, order=1, anti_aliasing=scale < 1, preserve_range=True).astype(np.float32)
+
+    return (linear(out[0]), resize_labels(out[1], patch), resize_labels(out[2], patch), *(linear(a) for a in out[3:]))
 
 
 def augment(
@@ -106,7 +114,8 @@ def augment(
     patch: tuple[int, int],
     aug: Augmentation | None,
     rng: np.random.Generator,
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    scratches: np.ndarray | None = None,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray | None]:
     """A random training patch: crop at ``base_scale`` x a random scale, flips, rotations and intensity changes.
 
     Parameters
@@ -116,28 +125,63 @@ def augment(
     base_scale : factor bringing the image to the network's working size.
     patch : output (height, width).
     aug : the random changes; ``None`` for a plain random crop at ``base_scale``.
+    rng : the random draws (the same ones whether or not ``scratches`` is given).
+    scratches : (H, W) float map (:func:`platesynth.render.raster.scratch_map`), cut and turned with the masks.
+
+    Returns
+    -------
+    image, wells, plaques, scratches : the patch's (``scratches`` ``None`` where none was given).
     """
     scale = base_scale
     if aug is not None:
         scale *= math.exp(rng.uniform(math.log(aug.scale[0]), math.log(aug.scale[1])))
-    image, wells, plaques = crop_and_resize((image, wells, plaques), scale, patch, rng)
-    if aug is None:
-        return image, wells, plaques
-    if aug.flips and rng.random() < 0.5:
-        image, wells, plaques = image[:, ::-1], wells[:, ::-1], plaques[:, ::-1]
-    if aug.flips and rng.random() < 0.5:
-        image, wells, plaques = image[::-1], wells[::-1], plaques[::-1]
-    if aug.rotations:
-        k = int(rng.integers(4)) if patch[0] == patch[1] else 2 * int(rng.integers(2))
-        image, wells, plaques = (np.rot90(a, k) for a in (image, wells, plaques))
-    return _intensity(image, aug, rng), np.ascontiguousarray(wells), np.ascontiguousarray(plaques)
+    arrays = (image, wells, plaques) + (() if scratches is None else (scratches,))
+    arrays = crop_and_resize(arrays, scale, patch, rng)
+    if aug is not None:
+        if aug.flips and rng.random() < 0.5:
+            arrays = tuple(a[:, ::-1] for a in arrays)
+        if aug.flips and rng.random() < 0.5:
+            arrays = tuple(a[::-1] for a in arrays)
+        if aug.rotations:
+            k = int(rng.integers(4)) if patch[0] == patch[1] else 2 * int(rng.integers(2))
+            arrays = tuple(np.rot90(a, k) for a in arrays)
+        arrays = (_intensity(arrays[0], aug, rng), *arrays[1:])
+    image, wells, plaques, *rest = (np.ascontiguousarray(a) for a in arrays)
+    return image, wells, plaques, (rest[0] if rest else None)
 
 
-def make_targets(wells: np.ndarray, plaques: np.ndarray, config: ModelConfig) -> dict[str, torch.Tensor]:
+def scratch_weights(scratches: np.ndarray, grid: int, weight: float) -> np.ndarray:
+    """Per-cell weights of the plaque branch's probability loss: ``1 + weight`` x the share of stain scraped off
+    within a cell of the cell (so that a thin scratch keeps its weight on a coarse grid).
+
+    Parameters
+    ----------
+    scratches : (H, W) float map in [0, 1] (:func:`platesynth.render.raster.scratch_map`).
+    grid : the branch's subsampling step.
+    weight : extra weight where the stain is scraped off entirely.
+
+    Returns
+    -------
+    numpy.ndarray
+        ``(ceil(H / grid), ceil(W / grid))`` float32, 1 away from scratches.
+    """
+    near = ndimage.maximum_filter(scratches, size=2 * grid - 1, mode="constant") if grid > 1 else scratches
+    return (1.0 + weight * near[::grid, ::grid]).astype(np.float32)
+
+
+def make_targets(
+    wells: np.ndarray,
+    plaques: np.ndarray,
+    config: ModelConfig,
+    scratches: np.ndarray | None = None,
+    scratch_weight: float = 0.0,
+) -> dict[str, torch.Tensor]:
     """Network targets of both branches from the two instance masks (see :mod:`platesynth.segment.targets`).
 
     Returns ``{"wells_prob": (1, h, w), "wells_dist": (R, h, w), "plaques_prob", "plaques_dist", "well_mask"}``,
-    ``well_mask`` being 1 inside any well, on the plaque grid.
+    ``well_mask`` being 1 inside any well, on the plaque grid; with ``scratches`` and a ``scratch_weight`` above 0
+    also ``"plaques_weight"`` (:func:`scratch_weights`), which :func:`platesynth.segment.loss.segmentation_loss`
+    applies to the plaque branch's probability loss.
     """
     targets = {}
     for name, labels in (("wells", wells), ("plaques", plaques)):
@@ -146,7 +190,17 @@ def make_targets(wells: np.ndarray, plaques: np.ndarray, config: ModelConfig) ->
         targets[f"{name}_dist"] = torch.from_numpy(np.ascontiguousarray(dist.transpose(2, 0, 1)))
     grid = config.branches["plaques"].grid
     targets["well_mask"] = torch.from_numpy((wells[::grid, ::grid] > 0).astype(np.float32)[None])
+    if scratches is not None and scratch_weight > 0:
+        targets["plaques_weight"] = torch.from_numpy(scratch_weights(scratches, grid, scratch_weight)[None])
     return targets
+
+
+def item_scratches(item: DatasetItem, shape: tuple[int, int]) -> np.ndarray:
+    """Where the item's scene scraped the stain off (:func:`platesynth.render.raster.scratch_map`) at ``shape``
+    (height, width); zeros for an item without a scene (a photo)."""
+    if item.params_path is None or not item.params_path.is_file():
+        return np.zeros(shape, np.float32)
+    return scratch_map(load_scene(item.params_path), (shape[1], shape[0]))
 
 
 class SegmentationDataset(torch.utils.data.Dataset):
@@ -160,6 +214,8 @@ class SegmentationDataset(torch.utils.data.Dataset):
         the working size, zero-padded to a multiple.
     augmentation : random changes for training; ``None`` for none.
     seed : seeds the random crops and changes together with the key.
+    scratch_weight : extra weight of the plaque probability loss where an item's scene scraped the stain off
+        (:func:`scratch_weights`); 0 for none.
 
     Keys are an item index, or ``(index, draw)`` to get a different random patch of the same item (see
     :class:`MixSampler`); a key always gives the same sample.
@@ -172,6 +228,7 @@ class SegmentationDataset(torch.utils.data.Dataset):
         patch: tuple[int, int] | None = None,
         augmentation: Augmentation | None = None,
         seed: int = 0,
+        scratch_weight: float = 0.0,
     ):
         multiple = config.size_multiple
         if patch is not None and (patch[0] % multiple or patch[1] % multiple):
@@ -181,6 +238,7 @@ class SegmentationDataset(torch.utils.data.Dataset):
         self.patch = patch
         self.augmentation = augmentation
         self.seed = seed
+        self.scratch_weight = scratch_weight
 
     def __len__(self) -> int:
         return len(self.items)
@@ -188,6 +246,7 @@ class SegmentationDataset(torch.utils.data.Dataset):
     def __getitem__(self, key: int | tuple[int, int]) -> dict[str, torch.Tensor]:
         index, draw = key if isinstance(key, tuple) else (key, 0)
         image, wells, plaques = load_item(self.items[index])
+        scratches = item_scratches(self.items[index], image.shape[:2]) if self.scratch_weight > 0 else None
         config = self.config
         normalised = normalize_image(image, config.percentile_low, config.percentile_high)
         base_scale = working_scale(image.shape, config.input_long_side)
@@ -196,12 +255,18 @@ class SegmentationDataset(torch.utils.data.Dataset):
             if shape != image.shape[:2]:
                 normalised = resize(normalised, shape, order=1, anti_aliasing=base_scale < 1, preserve_range=True)
                 wells, plaques = resize_labels(wells, shape), resize_labels(plaques, shape)
+                if scratches is not None:
+                    scratches = resize(scratches, shape, order=1, anti_aliasing=base_scale < 1, preserve_range=True)
             multiple = config.size_multiple
             normalised, wells, plaques = (pad_to_multiple(a, multiple) for a in (normalised, wells, plaques))
+            if scratches is not None:
+                scratches = pad_to_multiple(scratches, multiple)
         else:
             rng = np.random.default_rng([self.seed, index, draw])
-            normalised, wells, plaques = augment(normalised, wells, plaques, base_scale, self.patch, self.augmentation, rng)
-        sample = make_targets(wells, plaques, config)
+            normalised, wells, plaques, scratches = augment(
+                normalised, wells, plaques, base_scale, self.patch, self.augmentation, rng, scratches
+            )
+        sample = make_targets(wells, plaques, config, scratches, self.scratch_weight)
         sample["image"] = torch.from_numpy(np.ascontiguousarray(normalised.transpose(2, 0, 1), dtype=np.float32))
         return sample
 

@@ -15,6 +15,7 @@ def branch_loss(
     dist_true: torch.Tensor,
     lambda_dist: float = 0.2,
     background_reg: float = 1e-4,
+    prob_weight: torch.Tensor | None = None,
 ) -> tuple[torch.Tensor, dict[str, torch.Tensor]]:
     """StarDist's loss of one branch.
 
@@ -35,13 +36,15 @@ def branch_loss(
         Weight of the distance term (StarDist's default 0.2).
     background_reg : float
         Weight of the pull of predicted distances towards 0 on background (StarDist's default 1e-4).
+    prob_weight : (B, 1, h, w) tensor, optional
+        Per-pixel weights of the BCE term (the mean of the weighted terms); ``None`` weighs every pixel 1.
 
     Returns
     -------
     loss : scalar tensor
     parts : dict with the detached ``prob``, ``dist`` and ``reg`` terms.
     """
-    prob_term = F.binary_cross_entropy_with_logits(prob_logits, prob_true)
+    prob_term = F.binary_cross_entropy_with_logits(prob_logits, prob_true, weight=prob_weight)
     abs_error = (dist_true - dist_pred).abs()
     dist_term = (prob_true * abs_error).mean() / (prob_true.mean() + _EPS)
     reg_term = ((1 - prob_true) * dist_pred.abs()).mean()
@@ -74,8 +77,9 @@ def segmentation_loss(
     Parameters
     ----------
     outputs : the network's ``{branch: (prob_logits, distances)}``.
-    targets : ``{"<branch>_prob", "<branch>_dist"}`` for every branch, and ``"well_mask"`` (on the plaque grid)
-        when ``within_well_weight > 0``.
+    targets : ``{"<branch>_prob", "<branch>_dist"}`` for every branch, optionally ``"<branch>_weight"`` (the
+        per-pixel weights of its probability loss), and ``"well_mask"`` (on the plaque grid) when
+        ``within_well_weight > 0``.
 
     Returns
     -------
@@ -86,7 +90,8 @@ def segmentation_loss(
     parts: dict[str, float] = {}
     for name, (prob_logits, dist_pred) in outputs.items():
         loss, terms = branch_loss(
-            prob_logits, dist_pred, targets[f"{name}_prob"], targets[f"{name}_dist"], lambda_dist, background_reg
+            prob_logits, dist_pred, targets[f"{name}_prob"], targets[f"{name}_dist"], lambda_dist, background_reg,
+            targets.get(f"{name}_weight"),
         )
         total = total + loss
         parts.update({f"{name}_{key}": float(value) for key, value in terms.items()})

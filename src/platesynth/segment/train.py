@@ -78,6 +78,10 @@ class TrainConfig(BaseModel):
     lambda_dist: float = Field(0.2, ge=0, description="weight of the distance loss (StarDist: 0.2)")
     background_reg: float = Field(1e-4, ge=0, description="pull of background distances to 0 (StarDist: 1e-4)")
     within_well_weight: float = Field(0.0, ge=0, description="weight of the penalty on plaques predicted outside wells")
+    scratch_weight: float = Field(
+        0.0, ge=0, description="extra weight of the plaque probability loss where a rendered item's scratches "
+        "scraped the stain off: pale lesions that are not plaques (0: none)"
+    )
     tune_thresholds: bool = Field(True, description="choose probability and NMS thresholds on the validation images")
     min_resolved_cells: float = Field(
         0.0, ge=0, description="threshold tuning leaves out rendered plaques narrower than this many "
@@ -508,8 +512,10 @@ def train(
         history, best_val, start_epoch = checkpoint["history"], checkpoint["best_val"], checkpoint["epoch"]
 
     augmentation = Augmentation() if config.augment else None
-    train_data = SegmentationDataset(train_items, model_config, config.patch, augmentation, seed=config.seed)
-    val_data = SegmentationDataset(val_items, model_config)
+    train_data = SegmentationDataset(
+        train_items, model_config, config.patch, augmentation, seed=config.seed, scratch_weight=config.scratch_weight
+    )
+    val_data = SegmentationDataset(val_items, model_config, scratch_weight=config.scratch_weight)
     fractions = _fractions(config, train_sets)
     model.train()
     for epoch in range(start_epoch, config.epochs):
