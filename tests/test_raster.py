@@ -10,7 +10,7 @@ from _geometry import distance_to_top_edges, past_top_edge, pixel_centres_mm, wa
 from platesynth.errors import ParameterError, ShapeMismatchError
 from platesynth.render import postprocess as pp
 from platesynth.render import render
-from platesynth.render.appearance import stain_table, wall_sheen, wall_tints
+from platesynth.render.appearance import draw_well_content, stain_table, wall_sheen, wall_tints
 from platesynth.render.color import srgb_to_linear
 from platesynth.render.look import (
     CRESCENT_LIGHT,
@@ -588,3 +588,23 @@ def test_scratch_map_lies_where_the_image_shows_the_scrapes():
     clean = small_scene("high", 5, **{"artifacts.pipette_scratch": 0.0, "artifacts.extra_scratches": 0.0,
                                       "artifacts.rim_tears": 0.0})
     assert not clean.artifacts.scratches and not scratch_map(clean, size).any()
+
+
+def test_smears_darken_the_layer_where_they_lie():
+    overrides = {"artifacts.smears": 1.0, "artifacts.debris": 0.0, "plaques.negative_plate": 1.0}
+    scene = small_scene("high", 4, **overrides)
+    assert scene.artifacts.smears
+    size = (512, 384)
+    result = render_raster(scene, size)
+    view = camera_view(scene, *size)
+    wells, tops, top_radius = wells_in_view(scene, view)
+    specks = draw_well_content(scene, view, wells, tops, top_radius, scene_textures(scene)).specks
+    plain = render_raster(small_scene("high", 4, **(overrides | {"artifacts.smears": 0.0})), size).image
+    brightness, before = result.image.astype(float).sum(axis=2), plain.astype(float).sum(axis=2)
+    under = (specks > 0.3) & (result.wells > 0)
+    assert under.sum() > 50
+    assert np.median(before[under] - brightness[under]) > 40  # darker where a smear lies...
+    # ...and nowhere else, past the reach of the blur, the chromatic aberration, the sharpening and the JPEG blocks
+    away = ~ndimage.binary_dilation(specks > 0, iterations=32)
+    assert away.mean() > 0.5
+    np.testing.assert_array_equal(result.image[away], plain[away])

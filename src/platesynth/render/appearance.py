@@ -145,6 +145,11 @@ RIDGE_RAGGEDNESS = 1.3
 cells where the photos have them, not a drop shadow along the whole scrape."""
 TIP_CLUMP = 0.6
 """The clump of cells a scratch pushed to one side of its end is this share of the scratch's half width in radius."""
+SMEAR_RAGGEDNESS = 1.0
+"""A dark smear's (``artifacts.smears``) width varies along it by this share (:func:`edge_noise`): a band of folded
+cells with lumpy edges, not a pen stroke."""
+SMEAR_SOFTNESS_MM = 0.1
+"""A dark smear's edges fade over this width: the stain thins out around a fold, it has no cut edge."""
 
 WELL_DTYPE = np.dtype(
     [
@@ -866,15 +871,10 @@ def draw_well_content(
                      look.edge_grain_width, look.halo, look.halo_width, look.rim,
                      content.clearing, content.rim, content.plaque_ids)
     art = scene.artifacts
-    segments = []
-    for scratch in art.scratches:
-        points = np.asarray(scratch.points_mm, dtype=np.float64)
-        starts = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(points, axis=0), axis=1))])
-        phase = math.fmod(37.0 * points[0, 0] + 91.0 * points[0, 1], 2.0 * math.pi)  # each scratch its own
-        segments += [(*points[i], *points[i + 1], 0.5 * scratch.width_mm, starts[i], art.scratch_roughness, phase)
-                     for i in range(len(points) - 1)]
-    if segments:
-        _capsules(grid, np.array(segments), np.full(len(segments), art.scratch_clearing), content.scratched,
+    if art.scratches:
+        segments = np.concatenate([stroke_segments(s.points_mm, s.width_mm, art.scratch_roughness)
+                                   for s in art.scratches])
+        _capsules(grid, segments, np.full(len(segments), art.scratch_clearing), content.scratched,
                   art.scratch_softness_mm)
         if art.scratch_heaps > 0.0 and art.scratch_clearing > 0.0:  # most where a scratch covers half a texel
             cover = np.minimum(content.scratched / np.float32(art.scratch_clearing), np.float32(1.0))
@@ -892,7 +892,21 @@ def draw_well_content(
                          0.0, 0.0, 0.0))  # straight: no roughness
             values.append(d.darkness)
         _capsules(grid, np.array(rows), np.array(values), content.specks)
+    if art.smears:
+        strokes = [stroke_segments(m.points_mm, m.width_mm, SMEAR_RAGGEDNESS) for m in art.smears]
+        values = np.concatenate([np.full(len(rows), m.darkness) for rows, m in zip(strokes, art.smears)])
+        _capsules(grid, np.concatenate(strokes), values, content.specks, SMEAR_SOFTNESS_MM)
     return content
+
+
+def stroke_segments(points_mm, width_mm: float, roughness: float) -> np.ndarray:
+    """The capsules (rows of :func:`draw_capsules`' ``segments``) of a stroke along the polyline ``points_mm``,
+    ``width_mm`` wide, its edges ragged by ``roughness``, from a noise phase of its own (from its first point)."""
+    points = np.asarray(points_mm, dtype=np.float64)
+    starts = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(points, axis=0), axis=1))])
+    phase = math.fmod(37.0 * points[0, 0] + 91.0 * points[0, 1], 2.0 * math.pi)
+    return np.array([(*points[i], *points[i + 1], 0.5 * width_mm, starts[i], roughness, phase)
+                     for i in range(len(points) - 1)], dtype=np.float64).reshape(-1, 8)
 
 
 def _capsules(grid: Sampling, segments: np.ndarray, values: np.ndarray, out: np.ndarray, softness_mm: float = 0.0) -> None:

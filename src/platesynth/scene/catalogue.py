@@ -324,6 +324,13 @@ class ArtifactsConfig(Section):
                                      "each rim tear's angle off the well's radius, to either side (drawn per tear): "
                                      "0 straight inward, a bite; near 90 along the rim, a shallow crescent of bare "
                                      "plastic hugging it, as on the photos' torn wells")
+    smears: Dist = number(0.0, 0.0, 5.0, "per well",
+                          "mean number of dark smears per well: ragged bands where the layer folded or rolled up "
+                          "or the stain clumped, denser than the layer around them, beside which the layer reads "
+                          "paler (a counting model must not take that ground for plaques); none in a lysed well")
+    smear_length_mm: Dist = number([3.0, 8.0], 0.1, 20.0, "mm", "each smear's length along its centre line")
+    smear_width_mm: Dist = number([0.8, 2.2], 0.05, 5.0, "mm", "each smear's width")
+    smear_darkness: Dist = number([0.4, 1.0], 0.0, 10.0, "", "each smear's added stain density, relative")
     marker: float = probability(0.6, "chance of marker writing on the plate")
     marker_strokes: Dist = number({"integers": [1, 3]}, 1, 20, "strokes", "number of pen strokes", integer=True)
     marker_size_mm: Dist = number([3.0, 7.0], 0.5, 40.0, "mm", "length of a pen stroke (strokes stand 0.6 of it apart)")

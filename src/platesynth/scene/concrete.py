@@ -244,6 +244,15 @@ class Debris(_Concrete):
     darkness: float = Field(description="added stain density, relative")
 
 
+class Smear(_Concrete):
+    """A dark, ragged band inside a well where the layer folded or rolled up, or the stain clumped."""
+
+    well: int = Field(description="id of the well holding it")
+    points_mm: tuple[Vec2, ...] = Field(description="its centre line, a polyline in plate coordinates, mm")
+    width_mm: float = Field(description="width, mm")
+    darkness: float = Field(description="added stain density, relative")
+
+
 class Artifacts(_Concrete):
     """Everything on the plate that is not the assay itself."""
 
@@ -258,6 +267,7 @@ class Artifacts(_Concrete):
     marker: tuple[MarkerStroke, ...] = ()
     blots: tuple[Blot, ...] = ()
     debris: tuple[Debris, ...] = ()
+    smears: tuple[Smear, ...] = ()
 
 
 class Background(_Concrete):

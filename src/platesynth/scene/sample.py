@@ -33,6 +33,7 @@ from platesynth.scene.concrete import (
     PostProcessing,
     Scene,
     Scratch,
+    Smear,
     Stain,
     Well,
     WellStain,
@@ -73,7 +74,10 @@ RIM_START = 1.02
 """Scratches that start at the rim (the pipette's, the tears) start this many well radii from the centre: just past
 the layer's edge, so that they open onto it."""
 SCRATCH_REACH, DEBRIS_REACH = 0.95, 0.97
-"""Other scratches start, and specks lie, within this fraction of the well's radius."""
+"""Other scratches start, and specks and smears lie, within this fraction of the well's radius."""
+SMEAR_POINTS, SMEAR_BEND_RAD = 4, 0.3
+"""A dark smear's centre line: this many points, its heading turning by a normal draw of this sd (radians) at each
+(the photos' folds of the layer are nearly straight bands, not curls)."""
 MARKER_JITTER_MM = 1.0
 """Spread of the marker writing's start around the free corner, mm per axis."""
 
@@ -398,7 +402,8 @@ def sample_scene(config: SceneConfig, seed: int) -> Scene:
                                                                  scene_rng(seed, "scratch_softness")),
                             scratch_haze=c.artifacts.draw("scratch_haze", scene_rng(seed, "scratch_haze")),
                             scratch_heaps=c.artifacts.draw("scratch_heaps", scene_rng(seed, "scratch_heaps")),
-                            scratch_ridge=c.artifacts.draw("scratch_ridge", scene_rng(seed, "scratch_ridge"))),
+                            scratch_ridge=c.artifacts.draw("scratch_ridge", scene_rng(seed, "scratch_ridge")),
+                            smears=tuple(_smears(scene_rng(seed, "smears"), a, wells, radius))),
         background=background,
         lighting=lighting,
         camera=camera,
@@ -571,6 +576,27 @@ def _rim_tears(rng: np.random.Generator, section: ArtifactsConfig, wells: list[W
             tears.append(Scratch(well=well.id, points_mm=(_tuple2(start), _tuple2(end)),
                                  width_mm=section.draw("rim_tear_width_mm", rng)))
     return tears
+
+
+def _smears(rng: np.random.Generator, section: ArtifactsConfig, wells: list[Well], radius: float) -> list[Smear]:
+    """The dark smears (``artifacts.smears`` per well, Poisson): each a nearly straight band of
+    :data:`SMEAR_POINTS` points anywhere in the well, bending by :data:`SMEAR_BEND_RAD` at each, drawn from ``rng``,
+    a stream of their own; an emptied or lysed well has no layer to fold."""
+    rate = section.draw("smears", rng)
+    smears = []
+    for well in wells:
+        if well.emptied or well.lysed:
+            continue
+        for _ in range(int(rng.poisson(rate))):
+            start = np.array(well.center_mm) + _in_disc(rng, radius * DEBRIS_REACH)
+            headings = rng.uniform(0.0, 2.0 * math.pi) + np.cumsum(rng.normal(0.0, SMEAR_BEND_RAD, SMEAR_POINTS - 1))
+            step = section.draw("smear_length_mm", rng) / (SMEAR_POINTS - 1)
+            steps = step * np.stack([np.cos(headings), np.sin(headings)], axis=1)
+            stroke = start + np.concatenate([np.zeros((1, 2)), np.cumsum(steps, axis=0)])
+            smears.append(Smear(well=well.id, points_mm=tuple(map(_tuple2, stroke)),
+                                width_mm=section.draw("smear_width_mm", rng),
+                                darkness=section.draw("smear_darkness", rng)))
+    return smears
 
 
 def _marker_writing(

@@ -22,7 +22,7 @@ STREAMS = ("well_offsets", "unevenness", "fibres", "desk", "fine", "residual", "
            "scratch_ridge", "scratch_ridge_sides", "stain_pooling", "rim_mottle_grain",
            "plaque_edge_floor", "panel_shade", "crowd_thinning", "lysed_foam", "foam", "unevenness_light",
            "lysed_rim_loss", "lysed_haze", "plaque_edge_grain", "plaque_edge_grain_width",
-           "sharpen_threshold")
+           "sharpen_threshold", "smears")
 """The random streams of a scene's seed, in the order they are spawned (append new ones at the end)."""
 
 
