@@ -8,7 +8,8 @@ off, :func:`platesynth.render.raster.scratch_map`) or elsewhere. The last line s
 scratches cover, for scale.
 
 Run: ``python benchmarks/false_plaques.py --models DIR[,DIR...]`` (``--probs 0.15,0.3``: the kept probability is
-always added; ``--data D --data D ...`` as in ``threshold_grid.py``; ``--threads T``).
+always added; ``--nms N`` for every model instead of its kept one, to compare models at the same pair; ``--data D
+--data D ...`` as in ``threshold_grid.py``; ``--threads T``).
 """
 
 from __future__ import annotations
@@ -75,6 +76,7 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--models", required=True, help="finished trainings' folders, comma-separated")
     parser.add_argument("--data", action="append", default=[], help="the trainings' datasets, in order (optional)")
     parser.add_argument("--probs", default="0.15,0.3", help="probability thresholds besides the kept one")
+    parser.add_argument("--nms", type=float, default=None, help="NMS threshold (default: each model's kept one)")
     parser.add_argument("--overlap", type=float, default=0.3)
     parser.add_argument("--threads", type=int, default=2)
     args = parser.parse_args(argv)
@@ -91,6 +93,7 @@ def main(argv: list[str] | None = None) -> None:
     for model_dir in (Path(m) for m in args.models.split(",")):
         model = load_model(model_dir)
         kept_prob, kept_nms = model.config.thresholds["plaques"]
+        kept_nms = kept_nms if args.nms is None else args.nms
         probs = sorted({*(float(p) for p in args.probs.split(",")), float(kept_prob)})
         tallies = {p: PlaqueTally() for p in probs}
         scratched_area = well_area = 0
