@@ -303,6 +303,24 @@ def test_the_rim_tears_are_the_raster_renderers(pool):
     assert changes[0][torn_pixels].mean() == pytest.approx(changes[1][torn_pixels].mean(), rel=0.15)  # 32.3, 30.2
 
 
+def test_the_smears_are_the_raster_renderers(pool):
+    """``artifacts.smears`` are drawn into the floor texture Blender shows, as the raster renderer draws them: the same
+    pixels grow darker in both renderers."""
+    overrides = {"plaques.negative_plate": 1.0, "wells.emptied": 0.0, "artifacts.smear_width_mm": [1.0, 1.5]}
+    plain, smeared = (sample_scene(load_config("high", overrides=overrides | {"artifacts.smears": rate}), 7)
+                      for rate in (0.0, 1.5))
+    assert smeared.artifacts.smears and not plain.artifacts.smears
+    size = (320, 240)
+    changes = []
+    for render in (lambda scene: render_blender(scene, size, samples=SAMPLES, pool=pool), lambda scene: render_raster(scene, size)):
+        before, after = render(plain), render(smeared)
+        changes.append(ndimage.gaussian_filter((before.image.astype(np.float64) - after.image).mean(axis=2), 1.0))
+    dark_pixels = changes[1] > 8.0  # darker by 8 levels or more in the raster renderer
+    assert dark_pixels.sum() > 100
+    assert np.corrcoef(changes[0].ravel(), changes[1].ravel())[0, 1] > 0.9
+    assert changes[0][dark_pixels].mean() == pytest.approx(changes[1][dark_pixels].mean(), rel=0.15)
+
+
 def _scene_without_post():
     """A plate without plaques in a bright exposure (so that bloom has bright areas to glow around), and the same
     with every post-processing effect and the optical blur off (and sharpening per channel, noise per pixel, when
