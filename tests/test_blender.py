@@ -285,6 +285,16 @@ def test_the_stain_and_lysed_wells_are_the_raster_renderers(pool):
 
 
 @needs_bpy
+def _paler_in_both(pool, before_scene, after_scene, size=(320, 240)):
+    """How much paler ``after_scene`` is than ``before_scene`` at every pixel (8-bit levels, channels averaged,
+    smoothed over a pixel), in Blender and in the raster renderer."""
+    changes = []
+    for render in (lambda scene: render_blender(scene, size, samples=SAMPLES, pool=pool), lambda scene: render_raster(scene, size)):
+        before, after = render(before_scene), render(after_scene)
+        changes.append(ndimage.gaussian_filter((after.image.astype(np.float64) - before.image).mean(axis=2), 1.0))
+    return changes
+
+
 def test_the_rim_tears_are_the_raster_renderers(pool):
     """``artifacts.rim_tears`` are scratches of the scene, which Blender takes from the same floor texture: the same
     pixels grow paler in both renderers."""
@@ -292,11 +302,7 @@ def test_the_rim_tears_are_the_raster_renderers(pool):
     plain, torn = (sample_scene(load_config("high", overrides=overrides | {"artifacts.rim_tears": rate}), 7)
                    for rate in (0.0, 2.0))
     assert len(torn.artifacts.scratches) > len(plain.artifacts.scratches)
-    size = (320, 240)
-    changes = []
-    for render in (lambda scene: render_blender(scene, size, samples=SAMPLES, pool=pool), lambda scene: render_raster(scene, size)):
-        before, after = render(plain), render(torn)
-        changes.append(ndimage.gaussian_filter((after.image.astype(np.float64) - before.image).mean(axis=2), 1.0))
+    changes = _paler_in_both(pool, plain, torn)
     torn_pixels = changes[1] > 8.0  # paler by 8 levels or more in the raster renderer
     assert torn_pixels.sum() > 100  # 879 measured
     assert np.corrcoef(changes[0].ravel(), changes[1].ravel())[0, 1] > 0.9  # 0.985 measured
@@ -310,11 +316,7 @@ def test_the_smears_are_the_raster_renderers(pool):
     plain, smeared = (sample_scene(load_config("high", overrides=overrides | {"artifacts.smears": rate}), 7)
                       for rate in (0.0, 1.5))
     assert smeared.artifacts.smears and not plain.artifacts.smears
-    size = (320, 240)
-    changes = []
-    for render in (lambda scene: render_blender(scene, size, samples=SAMPLES, pool=pool), lambda scene: render_raster(scene, size)):
-        before, after = render(plain), render(smeared)
-        changes.append(ndimage.gaussian_filter((before.image.astype(np.float64) - after.image).mean(axis=2), 1.0))
+    changes = [-change for change in _paler_in_both(pool, plain, smeared)]
     dark_pixels = changes[1] > 8.0  # darker by 8 levels or more in the raster renderer
     assert dark_pixels.sum() > 100
     assert np.corrcoef(changes[0].ravel(), changes[1].ravel())[0, 1] > 0.9

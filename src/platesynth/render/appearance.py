@@ -872,10 +872,7 @@ def draw_well_content(
                      content.clearing, content.rim, content.plaque_ids)
     art = scene.artifacts
     if art.scratches:
-        segments = np.concatenate([stroke_segments(s.points_mm, s.width_mm, art.scratch_roughness)
-                                   for s in art.scratches])
-        _capsules(grid, segments, np.full(len(segments), art.scratch_clearing), content.scratched,
-                  art.scratch_softness_mm)
+        draw_scratches(scene, grid, content.scratched)
         if art.scratch_heaps > 0.0 and art.scratch_clearing > 0.0:  # most where a scratch covers half a texel
             cover = np.minimum(content.scratched / np.float32(art.scratch_clearing), np.float32(1.0))
             content.heaped[...] += np.float32(art.scratch_heaps) * 4.0 * cover * (1.0 - cover)
@@ -897,6 +894,16 @@ def draw_well_content(
         values = np.concatenate([np.full(len(rows), m.darkness) for rows, m in zip(strokes, art.smears)])
         _capsules(grid, np.concatenate(strokes), values, content.specks, SMEAR_SOFTNESS_MM)
     return content
+
+
+def draw_scratches(scene: Scene, grid: Sampling, out: np.ndarray) -> None:
+    """Max-combine into ``out`` the share of the stain ``scene``'s scratches scrape off at every point of ``grid``
+    (``WellContent.scratched``)."""
+    art = scene.artifacts
+    if not art.scratches:
+        return
+    segments = np.concatenate([stroke_segments(s.points_mm, s.width_mm, art.scratch_roughness) for s in art.scratches])
+    _capsules(grid, segments, np.full(len(segments), art.scratch_clearing), out, art.scratch_softness_mm)
 
 
 def stroke_segments(points_mm, width_mm: float, roughness: float) -> np.ndarray:

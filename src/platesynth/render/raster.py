@@ -229,6 +229,6 @@ def scratch_map(scene: Scene, size: tuple[int, int]) -> np.ndarray:
     pixels, pale lesions that are not plaques, with ``scratch_weight`` (:class:`platesynth.segment.train.TrainConfig`).
     """
     width, height = check_size(size)
-    view = camera_view(scene, width, height)
-    wells, top_centres, top_radius = wells_in_view(scene, view)
-    return appearance.draw_well_content(scene, view, wells, top_centres, top_radius, scene_textures(scene)).scratched
+    scraped = np.zeros((height, width), np.float32)
+    appearance.draw_scratches(scene, camera_view(scene, width, height), scraped)
+    return scraped
