@@ -1,4 +1,4 @@
-"""Where a trained model's false plaques lie on its own held-out renders: on the scenes' scratches, or elsewhere.
+"""Where a trained model's false plaques lie: on its held-out renders' scratches, or at the rim of the photos' wells.
 
 A scrape, a stray scratch or a tear at the rim is a pale lesion in the stain, as a plaque is. This predicts every
 held-out render of a training (the images its thresholds were tuned on) at a few probability thresholds (the NMS
@@ -7,21 +7,35 @@ plaques) or false, and a false one on a scratch (at least ``--overlap`` of its p
 off, :func:`platesynth.render.raster.scratch_map`) or elsewhere. The last line says how much of the wells' area the
 scratches cover, for scale.
 
+With ``--photos`` it looks at the shared real plates instead (``../shared/data/plaque12``, or ``PLATESYNTH_SHARED``):
+every plaque it predicts in a well a person counted 0 is false, and it is sorted by where it lies in its well
+(:func:`place_in_well`): inside, or at the rim (beyond ``RIM`` of the well's radius) at the top of the image, at the
+bottom (apart for the plate's last row, whose wells are seen past the plate's lower wall) or at a side. These are the
+plaques a lower threshold adds on the photos; the renders teach what to leave out.
+
 Run: ``python benchmarks/false_plaques.py --models DIR[,DIR...]`` (``--probs 0.15,0.3``: the kept probability is
 always added; ``--nms N`` for every model instead of its kept one, to compare models at the same pair; ``--data D
---data D ...`` as in ``threshold_grid.py``; ``--threads T``).
+--data D ...`` as in ``threshold_grid.py``; ``--photos``; ``--threads T``).
 """
 
 from __future__ import annotations
 
 import argparse
+import os
+from collections import Counter
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
+ROOT = Path(__file__).resolve().parents[1]
+SHARED = Path(os.environ.get("PLATESYNTH_SHARED", ROOT.parent / "shared"))
 SCRAPED = 0.05
 """A pixel is on a scratch where the scratch took off more than this share of the stain."""
+RIM = 0.85
+"""A plaque whose centre lies beyond this share of its well's radius from the well's centre is at the rim."""
+PLACES = ("inside", "rim, top", "rim, bottom, last row", "rim, bottom, other rows", "rim, side")
+"""Where :func:`place_in_well` puts a plaque: the top and the bottom are the image's, within 45 degrees."""
 
 
 @dataclass
@@ -70,6 +84,84 @@ def sort_predicted(predicted: np.ndarray, true: np.ndarray, scraped: np.ndarray,
     return tally
 
 
+def place_in_well(wells: np.ndarray, plaques: np.ndarray, last_row: set[int] = frozenset()) -> list[str]:
+    """Where each plaque lies in the well that holds most of its pixels (one of :data:`PLACES`).
+
+    Parameters
+    ----------
+    wells, plaques : (H, W) integer instance masks of the same image; plaques outside every well are left out.
+    last_row : ids of the wells in the plate's last row of the image (the bottom one).
+
+    Returns
+    -------
+    list of str
+        One place per plaque lying in a well, in the order of the plaque ids. The well's centre and radius are its
+        mask's centroid and the radius of a disc of its area; a plaque's centre is its centroid.
+    """
+    places = []
+    for plaque in np.unique(plaques[plaques > 0]):
+        inside = plaques == plaque
+        holders = Counter(wells[inside].tolist())
+        holders.pop(0, None)
+        if not holders:
+            continue
+        well = holders.most_common(1)[0][0]
+        well_y, well_x = np.nonzero(wells == well)
+        radius = np.sqrt(well_y.size / np.pi)
+        y, x = np.nonzero(inside)
+        dy, dx = y.mean() - well_y.mean(), x.mean() - well_x.mean()
+        if np.hypot(dy, dx) <= RIM * radius:
+            places.append("inside")
+        elif -dy >= abs(dx):
+            places.append("rim, top")
+        elif dy >= abs(dx):
+            places.append("rim, bottom, last row" if well in last_row else "rim, bottom, other rows")
+        else:
+            places.append("rim, side")
+    return places
+
+
+def tally_photos(args: argparse.Namespace) -> None:
+    """Print, per model and probability threshold, the plaques found in the photos' wells a person counted 0."""
+    import torch
+
+    from platesynth.data.layout import read_counts_csv
+    from platesynth.io import read_image
+    from platesynth.segment.model import load_model
+    from platesynth.segment.predict import predict_image
+
+    plates, table = SHARED / "data" / "plaque12" / "plates", SHARED / "data" / "plaque12" / "counts.csv"
+    if not table.is_file():
+        raise SystemExit(f"{table} not found: set PLATESYNTH_SHARED to the shared material")
+    empty: dict[str, set[tuple[int, int]]] = {}
+    for record in read_counts_csv(table):
+        if record.count == 0:
+            empty.setdefault(record.image, set()).add((record.row, record.col))
+    torch.set_num_threads(args.threads)
+    for model_dir in (Path(m) for m in args.models.split(",")):
+        model = load_model(model_dir)
+        kept_prob, kept_nms = model.config.thresholds["plaques"]
+        kept_nms = kept_nms if args.nms is None else args.nms
+        probs = sorted({*(float(p) for p in args.probs.split(",")), float(kept_prob)})
+        tallies = {p: Counter() for p in probs}
+        n_wells = 0
+        for name, cells in sorted(empty.items()):
+            image = read_image(plates / name)
+            for p in probs:
+                result = predict_image(model, image, thresholds={"plaques": (p, kept_nms)})
+                last = max(w.row for w in result.well_info)
+                keep = [w.id for w in result.well_info if (w.row, w.col) in cells]
+                wells = np.where(np.isin(result.wells, keep), result.wells, 0)
+                tallies[p].update(place_in_well(wells, result.plaques, {w.id for w in result.well_info if w.row == last}))
+            n_wells += len(keep)
+        print(f"{model_dir} ({n_wells} photo wells counted 0, NMS {kept_nms}): false plaques per 100 wells")
+        for p in probs:
+            total = sum(tallies[p].values())
+            mark = " (kept)" if p == kept_prob else ""
+            where = ", ".join(f"{place} {100 * tallies[p][place] / max(n_wells, 1):.0f}" for place in PLACES)
+            print(f"  prob {p:.2f}{mark}: {100 * total / max(n_wells, 1):.0f} ({where})")
+
+
 def main(argv: list[str] | None = None) -> None:
     """Print each model's tally per probability threshold."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -78,8 +170,12 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--probs", default="0.15,0.3", help="probability thresholds besides the kept one")
     parser.add_argument("--nms", type=float, default=None, help="NMS threshold (default: each model's kept one)")
     parser.add_argument("--overlap", type=float, default=0.3)
+    parser.add_argument("--photos", action="store_true", help="the shared photos' wells counted 0, not the renders")
     parser.add_argument("--threads", type=int, default=2)
     args = parser.parse_args(argv)
+    if args.photos:
+        tally_photos(args)
+        return
 
     import torch
 

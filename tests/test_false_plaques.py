@@ -33,3 +33,20 @@ def test_predicted_plaques_are_sorted_by_the_plaques_and_scratches_under_them(fa
     assert (total.found, total.false_on_scratches, total.false_elsewhere) == (2, 2, 4)
     empty = false_plaques.sort_predicted(np.zeros((4, 4), np.int32), true[:4, :4], scraped[:4, :4])
     assert empty.false == empty.found == 0
+
+
+def test_plaques_are_placed_by_where_they_lie_in_their_well(false_plaques):
+    yy, xx = np.mgrid[:100, :220]
+    wells = np.zeros((100, 220), np.uint8)
+    wells[(yy - 50) ** 2 + (xx - 50) ** 2 <= 40**2] = 1  # radius 40 around (50, 50)
+    wells[(yy - 50) ** 2 + (xx - 160) ** 2 <= 40**2] = 2  # the same around (50, 160), in the last row
+    plaques = np.zeros_like(wells, np.uint16)
+    spots = {1: (50, 50), 2: (13, 52), 3: (87, 48), 4: (52, 87), 5: (87, 160), 6: (50, 197), 7: (50, 140)}
+    for plaque, (y, x) in spots.items():
+        plaques[y - 2:y + 3, x - 2:x + 3] = plaque
+    plaques[0:3, 100:103] = 8  # outside every well: left out
+    places = false_plaques.place_in_well(wells, plaques, last_row={2})
+    assert places == ["inside", "rim, top", "rim, bottom, other rows", "rim, side", "rim, bottom, last row",
+                      "rim, side", "inside"]
+    assert set(places) <= set(false_plaques.PLACES)
+    assert false_plaques.place_in_well(wells, np.zeros_like(plaques)) == []
