@@ -328,9 +328,10 @@ class ArtifactsConfig(Section):
                           "mean number of dark smears per well: ragged bands where the layer folded or rolled up "
                           "or the stain clumped, denser than the layer around them, beside which the layer reads "
                           "paler (a counting model must not take that ground for plaques); none in a lysed well")
-    smear_length_mm: Dist = number([3.0, 8.0], 0.1, 20.0, "mm", "each smear's length along its centre line")
-    smear_width_mm: Dist = number([0.8, 2.2], 0.05, 5.0, "mm", "each smear's width")
-    smear_darkness: Dist = number([0.4, 1.0], 0.0, 10.0, "", "each smear's added stain density, relative")
+    smear_length_mm: Dist = number({"loguniform": [0.8, 7.0]}, 0.1, 20.0, "mm",
+                                   "each smear's length along its centre line")
+    smear_width_mm: Dist = number({"loguniform": [0.25, 1.5]}, 0.05, 5.0, "mm", "each smear's width")
+    smear_darkness: Dist = number([0.8, 2.0], 0.0, 10.0, "", "each smear's added stain density, relative")
     marker: float = probability(0.6, "chance of marker writing on the plate")
     marker_strokes: Dist = number({"integers": [1, 3]}, 1, 20, "strokes", "number of pen strokes", integer=True)
     marker_size_mm: Dist = number([3.0, 7.0], 0.5, 40.0, "mm", "length of a pen stroke (strokes stand 0.6 of it apart)")
