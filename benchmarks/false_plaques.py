@@ -23,8 +23,10 @@ from __future__ import annotations
 import argparse
 import os
 from collections import Counter
+from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -121,13 +123,25 @@ def place_in_well(wells: np.ndarray, plaques: np.ndarray, last_row: set[int] = f
     return places
 
 
-def tally_photos(args: argparse.Namespace) -> None:
-    """Print, per model and probability threshold, the plaques found in the photos' wells a person counted 0."""
+def models_to_tally(args: argparse.Namespace) -> Iterator[tuple[Path, Any, float, list[float], float]]:
+    """Each model of ``--models`` with what to tally it at: its folder, the model, its kept probability threshold, the
+    probability thresholds (``--probs`` and the kept one) and the NMS threshold (``--nms``, else its kept one)."""
     import torch
 
+    from platesynth.segment.model import load_model
+
+    torch.set_num_threads(args.threads)
+    for model_dir in (Path(m) for m in args.models.split(",")):
+        model = load_model(model_dir)
+        kept_prob, kept_nms = model.config.thresholds["plaques"]
+        probs = sorted({*(float(p) for p in args.probs.split(",")), float(kept_prob)})
+        yield model_dir, model, float(kept_prob), probs, kept_nms if args.nms is None else args.nms
+
+
+def tally_photos(args: argparse.Namespace) -> None:
+    """Print, per model and probability threshold, the plaques found in the photos' wells a person counted 0."""
     from platesynth.data.layout import read_counts_csv
     from platesynth.io import read_image
-    from platesynth.segment.model import load_model
     from platesynth.segment.predict import predict_image
 
     plates, table = SHARED / "data" / "plaque12" / "plates", SHARED / "data" / "plaque12" / "counts.csv"
@@ -137,12 +151,7 @@ def tally_photos(args: argparse.Namespace) -> None:
     for record in read_counts_csv(table):
         if record.count == 0:
             empty.setdefault(record.image, set()).add((record.row, record.col))
-    torch.set_num_threads(args.threads)
-    for model_dir in (Path(m) for m in args.models.split(",")):
-        model = load_model(model_dir)
-        kept_prob, kept_nms = model.config.thresholds["plaques"]
-        kept_nms = kept_nms if args.nms is None else args.nms
-        probs = sorted({*(float(p) for p in args.probs.split(",")), float(kept_prob)})
+    for model_dir, model, kept_prob, probs, kept_nms in models_to_tally(args):
         tallies = {p: Counter() for p in probs}
         n_wells = 0
         for name, cells in sorted(empty.items()):
@@ -177,20 +186,12 @@ def main(argv: list[str] | None = None) -> None:
         tally_photos(args)
         return
 
-    import torch
-
     from platesynth.data.layout import load_item
     from platesynth.segment.data import item_scratches
-    from platesynth.segment.model import load_model
     from platesynth.segment.predict import predict_image
     from platesynth.segment.train import tuning_items
 
-    torch.set_num_threads(args.threads)
-    for model_dir in (Path(m) for m in args.models.split(",")):
-        model = load_model(model_dir)
-        kept_prob, kept_nms = model.config.thresholds["plaques"]
-        kept_nms = kept_nms if args.nms is None else args.nms
-        probs = sorted({*(float(p) for p in args.probs.split(",")), float(kept_prob)})
+    for model_dir, model, kept_prob, probs, kept_nms in models_to_tally(args):
         tallies = {p: PlaqueTally() for p in probs}
         scratched_area = well_area = 0
         items = tuning_items(model, model_dir, args.data)
