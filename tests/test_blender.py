@@ -284,7 +284,6 @@ def test_the_stain_and_lysed_wells_are_the_raster_renderers(pool):
     assert np.abs(change[0] - change[1]).max() < 0.25 * np.abs(change[1]).max(), change  # 0.3 levels apart measured
 
 
-@needs_bpy
 def _paler_in_both(pool, before_scene, after_scene, size=(320, 240)):
     """How much paler ``after_scene`` is than ``before_scene`` at every pixel (8-bit levels, channels averaged,
     smoothed over a pixel), in Blender and in the raster renderer."""
@@ -295,6 +294,7 @@ def _paler_in_both(pool, before_scene, after_scene, size=(320, 240)):
     return changes
 
 
+@needs_bpy
 def test_the_rim_tears_are_the_raster_renderers(pool):
     """``artifacts.rim_tears`` are scratches of the scene, which Blender takes from the same floor texture: the same
     pixels grow paler in both renderers."""
@@ -309,6 +309,7 @@ def test_the_rim_tears_are_the_raster_renderers(pool):
     assert changes[0][torn_pixels].mean() == pytest.approx(changes[1][torn_pixels].mean(), rel=0.15)  # 32.3, 30.2
 
 
+@needs_bpy
 def test_the_smears_are_the_raster_renderers(pool):
     """``artifacts.smears`` are drawn into the floor texture Blender shows, as the raster renderer draws them: the same
     pixels grow darker in both renderers."""
