@@ -29,6 +29,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from scipy import ndimage
 
 ROOT = Path(__file__).resolve().parents[1]
 SHARED = Path(os.environ.get("PLATESYNTH_SHARED", ROOT.parent / "shared"))
@@ -101,17 +102,22 @@ def place_in_well(wells: np.ndarray, plaques: np.ndarray, last_row: set[int] = f
         mask's centroid and the radius of a disc of its area; a plaque's centre is its centroid.
     """
     places = []
-    for plaque in np.unique(plaques[plaques > 0]):
-        inside = plaques == plaque
-        holders = Counter(wells[inside].tolist())
+    discs: dict[int, tuple[float, float, float]] = {}  # well id: centre row, centre column, radius
+    for plaque, box in enumerate(ndimage.find_objects(plaques), start=1):
+        if box is None:
+            continue
+        inside = plaques[box] == plaque
+        holders = Counter(wells[box][inside].tolist())
         holders.pop(0, None)
         if not holders:
             continue
         well = holders.most_common(1)[0][0]
-        well_y, well_x = np.nonzero(wells == well)
-        radius = np.sqrt(well_y.size / np.pi)
+        if well not in discs:
+            well_y, well_x = np.nonzero(wells == well)
+            discs[well] = well_y.mean(), well_x.mean(), np.sqrt(well_y.size / np.pi)
+        centre_y, centre_x, radius = discs[well]
         y, x = np.nonzero(inside)
-        dy, dx = y.mean() - well_y.mean(), x.mean() - well_x.mean()
+        dy, dx = (y + box[0].start).mean() - centre_y, (x + box[1].start).mean() - centre_x
         if np.hypot(dy, dx) <= RIM * radius:
             places.append("inside")
         elif -dy >= abs(dx):
