@@ -31,6 +31,8 @@ from typing import Any
 import numpy as np
 from scipy import ndimage
 
+from platesynth.render.result import plaque_wells
+
 ROOT = Path(__file__).resolve().parents[1]
 SHARED = Path(os.environ.get("PLATESYNTH_SHARED", ROOT.parent / "shared"))
 SCRAPED = 0.05
@@ -88,11 +90,13 @@ def sort_predicted(predicted: np.ndarray, true: np.ndarray, scraped: np.ndarray,
 
 
 def place_in_well(wells: np.ndarray, plaques: np.ndarray, last_row: set[int] = frozenset()) -> list[str]:
-    """Where each plaque lies in the well that holds most of its pixels (one of :data:`PLACES`).
+    """Where each plaque lies in its well (one of :data:`PLACES`).
 
     Parameters
     ----------
-    wells, plaques : (H, W) integer instance masks of the same image; plaques outside every well are left out.
+    wells, plaques : (H, W) integer instance masks of the same image; a plaque's well is the one
+        :func:`platesynth.render.result.plaque_wells` gives it, as the counts do, and plaques mostly outside every
+        well are left out.
     last_row : ids of the wells in the plate's last row of the image (the bottom one).
 
     Returns
@@ -103,15 +107,12 @@ def place_in_well(wells: np.ndarray, plaques: np.ndarray, last_row: set[int] = f
     """
     places = []
     discs: dict[int, tuple[float, float, float]] = {}  # well id: centre row, centre column, radius
+    well_of = plaque_wells(wells, plaques)
     for plaque, box in enumerate(ndimage.find_objects(plaques), start=1):
-        if box is None:
+        well = well_of.get(plaque, 0)
+        if well == 0:
             continue
         inside = plaques[box] == plaque
-        holders = Counter(wells[box][inside].tolist())
-        holders.pop(0, None)
-        if not holders:
-            continue
-        well = holders.most_common(1)[0][0]
         if well not in discs:
             well_y, well_x = np.nonzero(wells == well)
             discs[well] = well_y.mean(), well_x.mean(), np.sqrt(well_y.size / np.pi)

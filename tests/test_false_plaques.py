@@ -45,6 +45,7 @@ def test_plaques_are_placed_by_where_they_lie_in_their_well(false_plaques):
     for plaque, (y, x) in spots.items():
         plaques[y - 2:y + 3, x - 2:x + 3] = plaque
     plaques[0:3, 100:103] = 8  # outside every well: left out
+    plaques[5:12, 48:53] = 9  # astride well 1's top edge (row 10), most of it outside: left out, as the counts do
     places = false_plaques.place_in_well(wells, plaques, last_row={2})
     assert places == ["inside", "rim, top", "rim, bottom, other rows", "rim, side", "rim, bottom, last row",
                       "rim, side", "inside"]

@@ -21,7 +21,7 @@ from platesynth.render.look import (
 )
 from platesynth.render.masks import clean_isolated_pixels
 from platesynth.render.raster import camera_view, parallax, plate_relief, render_raster, scratch_map, wells_in_view
-from platesynth.render.result import plaque_counts
+from platesynth.render.result import plaque_counts, plaque_wells
 from platesynth.render.sampling import ring, smeared_ring
 from platesynth.render.textures import scene_textures
 from platesynth.scene import Scene, load_config, sample_scene
@@ -287,6 +287,20 @@ def test_plaque_counts_match_masks_for_sampled_scenes():
         visible[int(np.bincount(result.wells[result.plaques == pid]).argmax())] += 1
     assert {k: v for k, v in visible.items() if k in counts} == counts
     assert sum(counts.values()) == len(np.unique(result.plaques)) - 1
+
+
+def test_each_plaque_belongs_to_the_well_holding_most_of_it_and_outside_wins_a_tie():
+    wells = np.zeros((6, 12), np.uint8)
+    wells[:, 2:6], wells[:, 6:10] = 1, 2
+    plaques = np.zeros_like(wells, np.uint16)
+    plaques[0, 4:9] = 1  # 2 pixels in well 1, 3 in well 2
+    plaques[2, 0:4] = 2  # 2 outside, 2 in well 1: a tie, outside wins
+    plaques[4, 8:12] = 3  # 2 in well 2, 2 outside: a tie again
+    plaques[5, 3:6] = 4  # all in well 1
+    assert plaque_wells(wells, plaques) == {1: 2, 2: 0, 3: 0, 4: 1}
+    assert plaque_counts(wells, plaques) == {1: 1, 2: 1}
+    assert plaque_counts(wells, plaques, [1, 2, 7]) == {1: 1, 2: 1, 7: 0}
+    assert plaque_wells(wells, np.zeros_like(plaques)) == {}
 
 
 def test_the_walls_top_edge_shows_through_the_floor_as_much_as_asked():

@@ -57,6 +57,28 @@ class RenderResult:
         return {w.id: counts[w.id] if w.countable else None for w in self.well_info}
 
 
+def plaque_wells(wells: np.ndarray, plaques: np.ndarray) -> dict[int, int]:
+    """The well each plaque belongs to: the one holding most of its pixels, or 0 where most lie outside every well.
+
+    Parameters
+    ----------
+    wells, plaques : (H, W) integer instance masks of equal shape.
+
+    Returns
+    -------
+    dict mapping each plaque id in ``plaques`` to a well id, or to 0 (outside every well, which also wins a tie).
+    """
+    inside = plaques > 0
+    if not inside.any():
+        return {}
+    pairs = np.stack([plaques[inside].astype(np.int64), wells[inside].astype(np.int64)])
+    (plaque_ids, well_of_pixel), n = np.unique(pairs, axis=1, return_counts=True)
+    order = np.lexsort((-n, plaque_ids))  # per plaque, the well with the most pixels first (the lower id on a tie)
+    plaque_ids, well_of_pixel = plaque_ids[order], well_of_pixel[order]
+    first = np.r_[True, plaque_ids[1:] != plaque_ids[:-1]]
+    return dict(zip(plaque_ids[first].tolist(), well_of_pixel[first].tolist()))
+
+
 def plaque_counts(wells: np.ndarray, plaques: np.ndarray, well_ids: list[int] | None = None) -> dict[int, int]:
     """Count plaques per well from the two instance masks.
 
@@ -67,22 +89,14 @@ def plaque_counts(wells: np.ndarray, plaques: np.ndarray, well_ids: list[int] | 
 
     Returns
     -------
-    dict mapping well id to the number of plaque ids whose pixels lie mostly in that well.
+    dict mapping well id to the number of plaque ids whose pixels lie mostly in that well (:func:`plaque_wells`).
     """
     if well_ids is None:
         well_ids = [int(i) for i in np.unique(wells) if i != 0]
     counts = {int(i): 0 for i in well_ids}
-    inside = plaques > 0
-    if not inside.any():
-        return counts
-    pairs = np.stack([plaques[inside].astype(np.int64), wells[inside].astype(np.int64)])
-    (plaque_ids, well_of_pixel), n = np.unique(pairs, axis=1, return_counts=True)
-    order = np.lexsort((-n, plaque_ids))  # per plaque, the well with the most pixels first
-    plaque_ids, well_of_pixel = plaque_ids[order], well_of_pixel[order]
-    first = np.r_[True, plaque_ids[1:] != plaque_ids[:-1]]
-    for well in well_of_pixel[first]:
-        if int(well) in counts:
-            counts[int(well)] += 1
+    for well in plaque_wells(wells, plaques).values():
+        if well in counts:
+            counts[well] += 1
     return counts
 
 
