@@ -15,7 +15,8 @@ plaques a lower threshold adds on the photos; the renders teach what to leave ou
 
 Run: ``python benchmarks/false_plaques.py --models DIR[,DIR...]`` (``--probs 0.15,0.3``: the kept probability is
 always added; ``--nms N`` for every model instead of its kept one, to compare models at the same pair; ``--data D
---data D ...`` as in ``threshold_grid.py``; ``--photos``; ``--threads T``).
+--data D ...`` as in ``threshold_grid.py``; ``--renders DIR``: every render of a dataset instead, such as plaque-free
+ones with smears; ``--photos``; ``--threads T``).
 """
 
 from __future__ import annotations
@@ -187,13 +188,14 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--nms", type=float, default=None, help="NMS threshold (default: each model's kept one)")
     parser.add_argument("--overlap", type=float, default=0.3)
     parser.add_argument("--photos", action="store_true", help="the shared photos' wells counted 0, not the renders")
+    parser.add_argument("--renders", default=None, help="every render of this dataset instead of the held-out ones")
     parser.add_argument("--threads", type=int, default=2)
     args = parser.parse_args(argv)
     if args.photos:
         tally_photos(args)
         return
 
-    from platesynth.data.layout import load_item
+    from platesynth.data.layout import list_items, load_item
     from platesynth.segment.data import item_scratches
     from platesynth.segment.predict import predict_image
     from platesynth.segment.train import tuning_items
@@ -201,7 +203,7 @@ def main(argv: list[str] | None = None) -> None:
     for model_dir, model, kept_prob, probs, kept_nms in models_to_tally(args):
         tallies = {p: PlaqueTally() for p in probs}
         scratched_area = well_area = 0
-        items = tuning_items(model, model_dir, args.data)
+        items = list_items(args.renders) if args.renders else tuning_items(model, model_dir, args.data)
         for item in items:
             image, wells, plaques = load_item(item)
             scraped = item_scratches(item, image.shape[:2]) > SCRAPED
@@ -210,7 +212,8 @@ def main(argv: list[str] | None = None) -> None:
             for p in probs:
                 predicted = predict_image(model, image, thresholds={"plaques": (p, kept_nms)}).plaques
                 tallies[p].add(sort_predicted(predicted, plaques, scraped, args.overlap))
-        print(f"{model_dir} ({len(items)} held-out renders, NMS {kept_nms}):")
+        print(f"{model_dir} ({len(items)} {'renders of ' + args.renders if args.renders else 'held-out renders'}, "
+              f"NMS {kept_nms}):")
         for p in probs:
             t = tallies[p]
             share = t.false_on_scratches / t.false if t.false else float("nan")
