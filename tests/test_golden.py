@@ -18,7 +18,7 @@ GOLDEN_SEED = 3
 GOLDEN = {
     # preset: sha256[:16] of (image, well mask, plaque mask) bytes
     "diverse": ("481d941fcd0f3c0e", "844f673d905e5611", "9d6d1664aeb1e953"),
-    "high": ("4606bff494e29840", "b8d69b0a3053cc3c", "eecb9a922f44a7aa"),
+    "high": ("befc9515dff00a80", "b8d69b0a3053cc3c", "eecb9a922f44a7aa"),
     "lightbox12": ("e7ec8c032f5eff51", "628d50b8fa623f9f", "823fd4f4b0b7dc7f"),
     "low": ("4cd9717deefdb4db", "746052f88d9526dc", "1d78f3ec8ecc4589"),
     "medium": ("88c6059e7c06d422", "6d3d02473c2a6619", "428d11b17a0a7657"),

@@ -382,7 +382,7 @@ def test_the_shipped_model_is_complete_and_loads():
     model = load_model(SHIPPED_MODEL)
     assert model.config.complete is True and is_complete(model.config, SHIPPED_MODEL)
     digest = hashlib.sha256((SHIPPED_MODEL / "weights.pt").read_bytes()).hexdigest()
-    assert digest == "50b11ec1f345b451ab1144c2e635b4037bb4117a08f807c1de316c0c7ad50837"
+    assert digest == "acd6b3f074e8475655d622560138247b341e00acabea799f28de25ee8d6b3032"
 
 
 def test_default_limit_follows_the_address_space_limit():

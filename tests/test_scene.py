@@ -49,7 +49,7 @@ def test_presets_load_and_sample_json_roundtrip(preset):
 # here changes every dataset rendered from these presets). Update only for a deliberate change of the sampling.
 SCENE_SHA256_SEED3 = {
     "diverse": "811febcc099fa2920c89071745449a0e9097a5d2dd7253bf8a55d9809b7a5f78",
-    "high": "eade03bf9932ac53c6e0b00ad0e99acf3ab400a7e5d1248bb33cc123a19f0012",
+    "high": "b41bfa3c71696ffa807696cc38dc8fe273ed24b4d5ff55346e75235885da9308",
     "lightbox12": "4399bb7e23a2fd84662fe9909abefdb54189406879bcab598c1b13209bb81faf",
     "low": "2b74e161f5580fdab0d26ae688985a94f3b9bf7f6483693d001fbabc8df0ebb6",
     "medium": "3930c2c9c64caa0e8ea98130ac61528fe58d74c5da1f14d2cca9bb2f8e793a5c",
