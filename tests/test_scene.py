@@ -5,6 +5,7 @@ from __future__ import annotations
 import hashlib
 import json
 import os
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -603,3 +604,18 @@ def test_scenes_do_not_depend_on_the_cpus_vector_instructions():
         pytest.skip("this CPU has no AVX-512: numpy takes the same paths with or without the switch")
     env = {**os.environ, "NPY_DISABLE_CPU_FEATURES": " ".join(beyond_avx2)}
     assert _scene_hashes_in_subprocess(env) == _scene_hashes_in_subprocess(dict(os.environ)) == SCENE_SHA256_SEED3
+
+
+def test_the_training_recipe_draws_the_smears_on_more_plates_than_high():
+    # scripts/train_model.sh passes its SMEARS to `platesynth render --set` for its high and crowded parts
+    from platesynth.cli.options import parse_overrides
+
+    script = (Path(__file__).resolve().parents[1] / "scripts" / "train_model.sh").read_text()
+    smears = re.search(r'^SMEARS=\$\{SMEARS-"(.*)"\}$', script, re.MULTILINE)[1]
+    recipe = load_config("high", overrides=parse_overrides([f"artifacts.smears={smears}"]))
+
+    def smeared_share(config) -> float:
+        return float(np.mean([len(sample_scene(config, seed).artifacts.smears) > 0 for seed in range(100)]))
+
+    assert smeared_share(load_config("high")) == pytest.approx(0.30)
+    assert smeared_share(recipe) == pytest.approx(0.68)
